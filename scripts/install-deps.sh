@@ -1,0 +1,36 @@
+#!/usr/bin/env bash
+# Installs every build, test and benchmark dependency of xgauge from Debian's
+# packages (Debian 12). Used by .ci/run and the README. Idempotent.
+set -euo pipefail
+
+packages=(
+  build-essential cmake ninja-build pkg-config git
+  libeigen3-dev        # vectors, transforms, small linear algebra
+  libtbb-dev           # oneTBB: parallel loops
+  libtiff-dev          # TIFF read/write
+  libxrl-dev           # xraylib: attenuation data
+  libnlopt-cxx-dev     # NLopt with the C++ interface
+  nlohmann-json3-dev   # JSON
+  libmuparser-dev      # dimension expressions in part models
+  libcli11-dev         # command line parsing
+  libfmt-dev libspdlog-dev
+  libstb-dev           # PNG previews (stb_image_write)
+  libgtest-dev libgmock-dev libbenchmark-dev
+  clang-format
+)
+
+sudo_cmd=()
+if [ "$(id -u)" -ne 0 ]; then sudo_cmd=(sudo); fi
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -eq 0 ]; then
+  echo "install-deps: all ${#packages[@]} packages already installed"
+  exit 0
+fi
+echo "install-deps: installing ${missing[*]}"
+export DEBIAN_FRONTEND=noninteractive
+"${sudo_cmd[@]}" apt-get update -qq
+"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"

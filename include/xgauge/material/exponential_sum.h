@@ -1,0 +1,53 @@
+// The material model: the whole source-material-detector chain as a sum of
+// exponentials in the path length x (mm) through the part (thesis 3.4):
+//
+//   I(x) = sum_k a_k exp(-mu_k x),   a_k > 0,  sum_k a_k = 1,  mu_k >= 0,
+//
+// so I(0) = 1 (a normalized radiograph is 1 where nothing attenuates).
+//
+// JSON (keys):
+//   model            "exponential_sum" | "monochromatic"
+//   terms            exponential_sum: [{"weight": a_k, "mu_per_mm": mu_k}, ...]
+//                    (1 to 8 terms; weights must sum to 1 within 1e-9)
+//   compound         monochromatic: chemical formula or NIST name (xraylib)
+//   density_g_cm3    monochromatic: density in g/cm^3
+//   energy_kev       monochromatic: photon energy in keV
+//   description      optional free text
+// A monochromatic material is one term with mu from xraylib.
+#pragma once
+
+#include "xgauge/core/config.h"
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace xgauge {
+
+struct ExponentialTerm {
+  double weight = 1.0;     // a_k, dimensionless
+  double mu_per_mm = 0.0;  // mu_k, 1/mm
+};
+
+class ExponentialSum {
+ public:
+  // Validates the constraints above; throws Error otherwise.
+  explicit ExponentialSum(std::vector<ExponentialTerm> terms, std::string description = {});
+
+  static ExponentialSum fromConfig(const ConfigNode& node);  // does not call finish()
+  static ExponentialSum load(const std::filesystem::path& path);
+  nlohmann::json toJson() const;
+
+  // Transmission I(x) and its derivative dI/dx for a path length in mm.
+  double transmission(double path_mm) const;
+  double derivative(double path_mm) const;
+
+  const std::vector<ExponentialTerm>& terms() const { return terms_; }
+  const std::string& description() const { return description_; }
+
+ private:
+  std::vector<ExponentialTerm> terms_;
+  std::string description_;
+};
+
+}  // namespace xgauge

@@ -1,0 +1,82 @@
+#include "xgauge/material/exponential_sum.h"
+
+#include "xgauge/material/attenuation.h"
+
+#include <cmath>
+
+namespace xgauge {
+
+ExponentialSum::ExponentialSum(std::vector<ExponentialTerm> terms, std::string description)
+    : terms_(std::move(terms)), description_(std::move(description)) {
+  if (terms_.empty() || terms_.size() > 8)
+    fail("an exponential-sum material needs 1 to 8 terms, got {}", terms_.size());
+  double sum = 0.0;
+  for (size_t k = 0; k < terms_.size(); ++k) {
+    const auto& t = terms_[k];
+    if (!(t.weight > 0.0) || !std::isfinite(t.weight))
+      fail("term {}: weight must be positive, got {}", k, t.weight);
+    if (!(t.mu_per_mm >= 0.0) || !std::isfinite(t.mu_per_mm))
+      fail("term {}: mu_per_mm must be >= 0, got {}", k, t.mu_per_mm);
+    sum += t.weight;
+  }
+  if (std::abs(sum - 1.0) > 1e-9) fail("weights must sum to 1, they sum to {:.12g}", sum);
+}
+
+ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
+  const std::string model = node.get<std::string>("model");
+  const std::string description = node.get<std::string>("description", "");
+  try {
+    if (model == "exponential_sum") {
+      const ConfigNode list = node.at("terms");
+      std::vector<ExponentialTerm> terms;
+      for (size_t i = 0; i < list.size(); ++i) {
+        const ConfigNode term = list[i];
+        terms.push_back({term.at("weight").number(), term.at("mu_per_mm").number()});
+      }
+      return ExponentialSum(std::move(terms), description);
+    }
+    if (model == "monochromatic") {
+      const std::string compound = node.get<std::string>("compound");
+      const double density = node.at("density_g_cm3").number(1e-6, 30.0);
+      const double energy = node.at("energy_kev").number(1.0, 1000.0);
+      return ExponentialSum({{1.0, linearAttenuationPerMm(compound, density, energy)}},
+                            description.empty()
+                                ? fmt::format("{} ({} g/cm^3) at {} keV", compound, density, energy)
+                                : description);
+    }
+  } catch (const Error& e) {
+    if (!e.where().file.empty()) throw;
+    node.fail(e.message());
+  }
+  node.at("model").fail(
+      fmt::format("unknown material model '{}' (known: exponential_sum, monochromatic)", model));
+}
+
+ExponentialSum ExponentialSum::load(const std::filesystem::path& path) {
+  const ConfigNode root = ConfigNode::loadFile(path);
+  ExponentialSum material = fromConfig(root);
+  root.finish();
+  return material;
+}
+
+nlohmann::json ExponentialSum::toJson() const {
+  nlohmann::json terms = nlohmann::json::array();
+  for (const auto& t : terms_) terms.push_back({{"weight", t.weight}, {"mu_per_mm", t.mu_per_mm}});
+  nlohmann::json out = {{"model", "exponential_sum"}, {"terms", terms}};
+  if (!description_.empty()) out["description"] = description_;
+  return out;
+}
+
+double ExponentialSum::transmission(double path_mm) const {
+  double sum = 0.0;
+  for (const auto& t : terms_) sum += t.weight * std::exp(-t.mu_per_mm * path_mm);
+  return sum;
+}
+
+double ExponentialSum::derivative(double path_mm) const {
+  double sum = 0.0;
+  for (const auto& t : terms_) sum -= t.weight * t.mu_per_mm * std::exp(-t.mu_per_mm * path_mm);
+  return sum;
+}
+
+}  // namespace xgauge

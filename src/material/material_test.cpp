@@ -1,0 +1,101 @@
+#include "xgauge/material/attenuation.h"
+#include "xgauge/material/exponential_sum.h"
+#include "xgauge/material/transmission_table.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+namespace xgauge {
+namespace {
+
+ExponentialSum threeTerms() {
+  return ExponentialSum({{0.5, 0.02}, {0.3, 0.08}, {0.2, 0.4}});
+}
+
+TEST(ExponentialSum, ClosedForm) {
+  const auto m = threeTerms();
+  EXPECT_DOUBLE_EQ(m.transmission(0.0), 1.0);
+  const double x = 7.5;
+  const double expected = 0.5 * std::exp(-0.15) + 0.3 * std::exp(-0.6) + 0.2 * std::exp(-3.0);
+  EXPECT_DOUBLE_EQ(m.transmission(x), expected);
+  const double h = 1e-6;
+  EXPECT_NEAR(m.derivative(x), (m.transmission(x + h) - m.transmission(x - h)) / (2 * h), 1e-9);
+}
+
+TEST(ExponentialSum, RejectsInvalidTerms) {
+  EXPECT_THROW(ExponentialSum({{0.5, 0.1}, {0.4, 0.2}}), Error);   // sum 0.9
+  EXPECT_THROW(ExponentialSum({{1.2, 0.1}, {-0.2, 0.2}}), Error);  // negative weight
+  EXPECT_THROW(ExponentialSum({{1.0, -0.1}}), Error);              // negative mu
+  EXPECT_THROW(ExponentialSum({{1.0, NAN}}), Error);
+  EXPECT_THROW(ExponentialSum({}), Error);
+}
+
+TEST(ExponentialSum, JsonRoundTrip) {
+  const auto m = threeTerms();
+  const auto again = ExponentialSum::fromConfig(ConfigNode::fromJson(m.toJson(), "m.json"));
+  ASSERT_EQ(again.terms().size(), 3u);
+  for (size_t k = 0; k < 3; ++k) {
+    EXPECT_EQ(again.terms()[k].weight, m.terms()[k].weight);
+    EXPECT_EQ(again.terms()[k].mu_per_mm, m.terms()[k].mu_per_mm);
+  }
+}
+
+TEST(ExponentialSum, ErrorsNameTheFileAndKey) {
+  auto root = ConfigNode::parse(R"({"model": "exponential_sum", "terms": [{"weight": 1}]})",
+                                "al.json");
+  try {
+    ExponentialSum::fromConfig(root);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.where().file, "al.json");
+    EXPECT_EQ(e.where().key_path, "/terms/0");
+  }
+  auto unknown = ConfigNode::parse(R"({"model": "exp"})", "al.json");
+  EXPECT_THROW(ExponentialSum::fromConfig(unknown), Error);
+}
+
+TEST(Attenuation, AluminiumFromXraylib) {
+  // NIST XCOM: Al at 100 keV, total with coherent: 0.1704 cm^2/g.
+  EXPECT_NEAR(massAttenuationCm2PerG("Al", 100.0), 0.1704, 0.002);
+  EXPECT_NEAR(linearAttenuationPerMm("Al", 2.699, 100.0), 0.1704 * 2.699 * 0.1, 0.001);
+  EXPECT_THROW(massAttenuationCm2PerG("Xx", 100.0), Error);
+  EXPECT_THROW(linearAttenuationPerMm("Al", -1.0, 100.0), Error);
+}
+
+TEST(ExponentialSum, MonochromaticFromConfig) {
+  auto root = ConfigNode::parse(
+      R"({"model": "monochromatic", "compound": "Al", "density_g_cm3": 2.699, "energy_kev": 100})",
+      "al.json");
+  const auto m = ExponentialSum::fromConfig(root);
+  EXPECT_NO_THROW(root.finish());
+  ASSERT_EQ(m.terms().size(), 1u);
+  EXPECT_DOUBLE_EQ(m.terms()[0].mu_per_mm, linearAttenuationPerMm("Al", 2.699, 100.0));
+}
+
+TEST(TransmissionTable, MatchesExactCurve) {
+  const auto m = threeTerms();
+  const auto table = TransmissionTable::forMaterial(m, 60.0);
+  double worst = 0.0;
+  for (int i = 0; i <= 600000; ++i) {
+    const double x = i * 1e-4;
+    worst = std::max(worst, std::abs(table(x) - m.transmission(x)));
+  }
+  EXPECT_LT(worst, 1e-10);
+  EXPECT_DOUBLE_EQ(table(0.0), 1.0);
+  EXPECT_DOUBLE_EQ(table(-1.0), 1.0);           // clamped
+  EXPECT_DOUBLE_EQ(table(100.0), table(60.0));  // clamped
+}
+
+TEST(TransmissionTable, StrictlyDecreasing) {
+  const auto table = TransmissionTable::forMaterial(threeTerms(), 60.0);
+  double previous = table(0.0);
+  for (int i = 1; i <= 60000; ++i) {
+    const double value = table(i * 1e-3);
+    ASSERT_LT(value, previous) << "at x = " << i * 1e-3;
+    previous = value;
+  }
+}
+
+}  // namespace
+}  // namespace xgauge

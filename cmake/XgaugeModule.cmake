@@ -47,5 +47,5 @@ function(xgauge_test name)
   target_compile_definitions(${name} PRIVATE
     XGAUGE_SOURCE_DIR="${PROJECT_SOURCE_DIR}")
   xgauge_compile_options(${name})
-  gtest_discover_tests(${name} DISCOVERY_TIMEOUT 60)
+  gtest_discover_tests(${name} TEST_PREFIX "${name}." DISCOVERY_TIMEOUT 60)
 endfunction()

@@ -10,6 +10,7 @@
 #include <algorithm>
 #include <cstdint>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace xgauge {
@@ -36,6 +37,12 @@ struct PixelRect {
   }
   bool operator==(const PixelRect&) const = default;
 };
+
+// "{x=10, y=20, width=30, height=40}", the key names a config file uses; for
+// error messages.
+inline std::string toString(const PixelRect& r) {
+  return fmt::format("{{x={}, y={}, width={}, height={}}}", r.x, r.y, r.width, r.height);
+}
 
 template <typename T>
 class ImageT {

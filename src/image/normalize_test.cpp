@@ -1,0 +1,93 @@
+#include "xgauge/image/normalize.h"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+namespace xgauge {
+namespace {
+
+bool contains(const std::string& text, const std::string& part) {
+  return text.find(part) != std::string::npos;
+}
+
+TEST(NormalizeByWhiteRegion, DividesByWhiteMeanAndClampsAtOne) {
+  Image raw(6, 4, 1000.0f);
+  // White region: columns 4..5, all rows, mean (3000 + 5000) / 2 = 4000.
+  for (int y = 0; y < 4; ++y) {
+    raw(4, y) = 3000.0f;
+    raw(5, y) = 5000.0f;
+  }
+  raw(0, 0) = -400.0f;  // below zero stays below zero
+  const Image normalized = normalizeByWhiteRegion(raw, PixelRect{4, 0, 2, 4});
+  EXPECT_EQ(normalized(1, 1), 0.25f);
+  EXPECT_EQ(normalized(4, 2), 0.75f);
+  EXPECT_EQ(normalized(5, 2), 1.0f);  // 1.25 clamped
+  EXPECT_EQ(normalized(0, 0), -0.1f);
+}
+
+TEST(NormalizeByWhiteRegion, Errors) {
+  const Image raw(64, 48, 10.0f);
+  try {
+    normalizeByWhiteRegion(raw, PixelRect{60, 10, 8, 8});
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_TRUE(contains(e.what(), "{x=60, y=10, width=8, height=8}")) << e.what();
+    EXPECT_TRUE(contains(e.what(), "64x48")) << e.what();
+  }
+  EXPECT_THROW(normalizeByWhiteRegion(raw, PixelRect{0, 0, 0, 8}), Error);
+  EXPECT_THROW(normalizeByWhiteRegion(raw, PixelRect{-1, 0, 4, 4}), Error);
+  try {
+    normalizeByWhiteRegion(Image(8, 8, 0.0f), PixelRect{0, 0, 4, 4});
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_TRUE(contains(e.what(), "must be > 0")) << e.what();
+  }
+}
+
+TEST(FlatFieldCorrect, RecoversKnownTransmission) {
+  // raw = dark + t * (flat - dark) with a per-pixel gain and offset.
+  const int w = 9, h = 7;
+  Image raw(w, h), dark(w, h), flat(w, h), transmission(w, h);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      dark(x, y) = static_cast<float>(100 + 3 * x + y);
+      flat(x, y) = static_cast<float>(40000 - 500 * y + 17 * x);
+      transmission(x, y) = static_cast<float>(0.05 + 0.1 * ((x + 2 * y) % 10));
+      raw(x, y) = static_cast<float>(
+          static_cast<double>(dark(x, y)) +
+          static_cast<double>(transmission(x, y)) *
+              (static_cast<double>(flat(x, y)) - static_cast<double>(dark(x, y))));
+    }
+  }
+  const Image corrected = flatFieldCorrect(raw, dark, flat);
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x)
+      EXPECT_NEAR(corrected(x, y), transmission(x, y), 1e-6) << x << ", " << y;
+  // Not clamped: brighter than the flat field is above 1.
+  Image bright = flat;
+  bright(0, 0) = flat(0, 0) + (flat(0, 0) - dark(0, 0));
+  EXPECT_EQ(flatFieldCorrect(bright, dark, flat)(0, 0), 2.0f);
+}
+
+TEST(FlatFieldCorrect, Errors) {
+  const Image a(10, 8, 5.0f);
+  try {
+    flatFieldCorrect(a, Image(10, 7), a);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_TRUE(contains(e.what(), "raw 10x8, dark 10x7, flat 10x8")) << e.what();
+  }
+  Image dark(10, 8, 100.0f), flat(10, 8, 1000.0f);
+  flat(7, 3) = 100.0f;  // equal: dead pixel
+  flat(2, 5) = 50.0f;   // later in row-major order
+  try {
+    flatFieldCorrect(a, dark, flat);
+    FAIL() << "expected an error";
+  } catch (const Error& e) {
+    EXPECT_TRUE(contains(e.what(), "pixel (7, 3)")) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace xgauge

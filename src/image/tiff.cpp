@@ -1,0 +1,327 @@
+#include "xgauge/image/tiff.h"
+
+#include "xgauge/core/atomic_file.h"
+#include "xgauge/core/error.h"
+#include "xgauge/core/log.h"
+
+#include <tiffio.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdarg>
+#include <cstdio>
+#include <cstring>
+#include <limits>
+#include <memory>
+#include <string>
+#include <type_traits>
+#include <vector>
+
+namespace xgauge {
+namespace {
+
+constexpr int64_t kMaxPixels = int64_t{1} << 30;
+constexpr size_t kStripBytes = size_t{256} << 10;
+
+// libtiff reports problems through handlers. The global ones
+// (TIFFSetErrorHandler) are shared by every thread and print to stderr, so
+// each open file gets its own (TIFFOpenOptions, libtiff >= 4.5) that collect
+// the messages here. It must outlive the TIFF handle: closing may report too.
+struct TiffMessages {
+  std::string file;  // libtiff often passes the file name as the "module"
+  std::string errors;
+  std::vector<std::string> warnings;
+};
+
+std::string formatMessage(const TiffMessages& messages, const char* module, const char* format,
+                          va_list args) {
+  va_list copy;
+  va_copy(copy, args);
+  const int length = std::vsnprintf(nullptr, 0, format, copy);
+  va_end(copy);
+  std::string text;
+  if (length > 0) {
+    text.resize(static_cast<size_t>(length) + 1);
+    std::vsnprintf(text.data(), text.size(), format, args);
+    text.resize(static_cast<size_t>(length));
+  }
+  if (module != nullptr && *module != '\0' && messages.file != module)
+    text = std::string(module) + ": " + text;
+  return text;
+}
+
+int collectError(TIFF*, void* user_data, const char* module, const char* format, va_list args) {
+  auto& messages = *static_cast<TiffMessages*>(user_data);
+  if (!messages.errors.empty()) messages.errors += "; ";
+  messages.errors += formatMessage(messages, module, format, args);
+  return 1;  // handled: libtiff does not call the global handlers
+}
+
+int collectWarning(TIFF*, void* user_data, const char* module, const char* format, va_list args) {
+  auto& messages = *static_cast<TiffMessages*>(user_data);
+  messages.warnings.push_back(formatMessage(messages, module, format, args));
+  return 1;
+}
+
+struct TiffCloser {
+  void operator()(TIFF* tif) const { TIFFClose(tif); }
+};
+using TiffHandle = std::unique_ptr<TIFF, TiffCloser>;
+
+TiffHandle openTiff(const std::filesystem::path& path, const char* mode, TiffMessages& messages) {
+  std::unique_ptr<TIFFOpenOptions, decltype(&TIFFOpenOptionsFree)> options(TIFFOpenOptionsAlloc(),
+                                                                           &TIFFOpenOptionsFree);
+  XG_CHECK(options != nullptr, "out of memory");
+  TIFFOpenOptionsSetErrorHandlerExtR(options.get(), collectError, &messages);
+  TIFFOpenOptionsSetWarningHandlerExtR(options.get(), collectWarning, &messages);
+  return TiffHandle(TIFFOpenExt(path.c_str(), mode, options.get()));
+}
+
+// " (libtiff: ...)" or nothing.
+std::string libtiffSays(const TiffMessages& messages) {
+  return messages.errors.empty() ? std::string() : " (libtiff: " + messages.errors + ")";
+}
+
+std::string describeSamples(uint16_t bits, uint16_t sample_format) {
+  const char* kind = "unknown sample format";
+  switch (sample_format) {
+    case SAMPLEFORMAT_UINT:
+      kind = "unsigned integer";
+      break;
+    case SAMPLEFORMAT_INT:
+      kind = "signed integer";
+      break;
+    case SAMPLEFORMAT_IEEEFP:
+      kind = "float";
+      break;
+    case SAMPLEFORMAT_VOID:
+      kind = "untyped";
+      break;
+    case SAMPLEFORMAT_COMPLEXINT:
+      kind = "complex integer";
+      break;
+    case SAMPLEFORMAT_COMPLEXIEEEFP:
+      kind = "complex float";
+      break;
+    default:
+      return fmt::format("{}-bit samples of unknown sample format {}", bits, sample_format);
+  }
+  return fmt::format("{}-bit {}", bits, kind);
+}
+
+std::string describePhotometric(uint16_t photometric) {
+  switch (photometric) {
+    case PHOTOMETRIC_MINISWHITE:
+      return "MinIsWhite (inverted grey)";
+    case PHOTOMETRIC_RGB:
+      return "RGB";
+    case PHOTOMETRIC_PALETTE:
+      return "palette (indexed colour)";
+    case PHOTOMETRIC_MASK:
+      return "transparency mask";
+    case PHOTOMETRIC_SEPARATED:
+      return "separated (CMYK)";
+    default:
+      return fmt::format("{}", photometric);
+  }
+}
+
+// Decodes the whole first directory into `out`: width * height samples of
+// `sample_bytes` each, row-major, in native byte order.
+void decodeAll(TIFF* tif, void* out, size_t sample_bytes, uint32_t width, uint32_t height,
+               const TiffMessages& messages, const SourceLocation& where) {
+  auto* base = static_cast<unsigned char*>(out);
+  const size_t row_bytes = size_t{width} * sample_bytes;
+  if (TIFFIsTiled(tif)) {
+    uint32_t tile_width = 0, tile_height = 0;
+    TIFFGetField(tif, TIFFTAG_TILEWIDTH, &tile_width);
+    TIFFGetField(tif, TIFFTAG_TILELENGTH, &tile_height);
+    const tmsize_t tile_bytes = TIFFTileSize(tif);
+    if (tile_width == 0 || tile_height == 0 || tile_bytes <= 0 ||
+        static_cast<size_t>(tile_bytes) < size_t{tile_width} * tile_height * sample_bytes)
+      failAt(where, "corrupt TIFF: invalid tile size {}x{}{}", tile_width, tile_height,
+             libtiffSays(messages));
+    std::vector<unsigned char> tile(static_cast<size_t>(tile_bytes));
+    for (uint32_t tile_y = 0; tile_y < height; tile_y += tile_height) {
+      for (uint32_t tile_x = 0; tile_x < width; tile_x += tile_width) {
+        if (TIFFReadTile(tif, tile.data(), tile_x, tile_y, 0, 0) < 0)
+          failAt(where, "cannot decode the tile at pixel ({}, {}){}", tile_x, tile_y,
+                 libtiffSays(messages));
+        // Copy the part of the tile inside the image (edge tiles are padded).
+        const uint32_t rows = std::min(tile_height, height - tile_y);
+        const size_t copy_bytes = size_t{std::min(tile_width, width - tile_x)} * sample_bytes;
+        for (uint32_t r = 0; r < rows; ++r)
+          std::memcpy(base + (size_t{tile_y} + r) * row_bytes + size_t{tile_x} * sample_bytes,
+                      tile.data() + size_t{r} * tile_width * sample_bytes, copy_bytes);
+      }
+    }
+  } else {
+    uint32_t rows_per_strip = 0;
+    TIFFGetFieldDefaulted(tif, TIFFTAG_ROWSPERSTRIP, &rows_per_strip);
+    if (rows_per_strip == 0 || rows_per_strip > height) rows_per_strip = height;
+    // Strips span whole rows, so each decodes straight into place.
+    for (uint32_t row = 0; row < height; row += rows_per_strip) {
+      const uint32_t rows = std::min(rows_per_strip, height - row);
+      const auto bytes = static_cast<tmsize_t>(size_t{rows} * row_bytes);
+      if (TIFFReadEncodedStrip(tif, TIFFComputeStrip(tif, row, 0), base + size_t{row} * row_bytes,
+                               bytes) != bytes)
+        failAt(where, "cannot decode the strip starting at row {}{}", row, libtiffSays(messages));
+    }
+  }
+}
+
+template <typename Sample>
+Image readSamples(TIFF* tif, uint32_t width, uint32_t height, const TiffMessages& messages,
+                  const SourceLocation& where) {
+  std::vector<Sample> samples(size_t{width} * height);
+  decodeAll(tif, samples.data(), sizeof(Sample), width, height, messages, where);
+  const int w = static_cast<int>(width), h = static_cast<int>(height);
+  Image image(w, h);
+  for (int y = 0; y < h; ++y) {
+    const Sample* in = samples.data() + static_cast<size_t>(y) * width;
+    float* out = image.row(y);
+    for (int x = 0; x < w; ++x) {
+      if constexpr (std::is_floating_point_v<Sample>) {
+        if (!std::isfinite(in[x]))
+          failAt(where, "pixel ({}, {}) is {}: a radiograph must hold finite values", x, y, in[x]);
+        if constexpr (sizeof(Sample) > sizeof(float)) {
+          if (std::abs(in[x]) > static_cast<Sample>(std::numeric_limits<float>::max()))
+            failAt(where, "pixel ({}, {}) = {} is beyond the float range", x, y, in[x]);
+        }
+      }
+      out[x] = static_cast<float>(in[x]);
+    }
+  }
+  return image;
+}
+
+}  // namespace
+
+Image readTiff(const std::filesystem::path& path) {
+  const SourceLocation where = SourceLocation::inFile(path.string());
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec))
+    throw Error(ec ? "cannot access the file: " + ec.message() : "file does not exist", where);
+  if (std::filesystem::is_directory(path, ec)) throw Error("is a folder, not a TIFF file", where);
+
+  TiffMessages messages{path.string(), {}, {}};
+  const TiffHandle tif = openTiff(path, "r", messages);
+  if (!tif) failAt(where, "not a readable TIFF file{}", libtiffSays(messages));
+
+  // Check the layout before touching the pixels.
+  uint32_t width = 0, height = 0;
+  if (!TIFFGetField(tif.get(), TIFFTAG_IMAGEWIDTH, &width) ||
+      !TIFFGetField(tif.get(), TIFFTAG_IMAGELENGTH, &height))
+    failAt(where, "corrupt TIFF: no image size{}", libtiffSays(messages));
+  uint16_t samples_per_pixel = 1, bits = 1, sample_format = SAMPLEFORMAT_UINT;
+  TIFFGetFieldDefaulted(tif.get(), TIFFTAG_SAMPLESPERPIXEL, &samples_per_pixel);
+  TIFFGetFieldDefaulted(tif.get(), TIFFTAG_BITSPERSAMPLE, &bits);
+  TIFFGetFieldDefaulted(tif.get(), TIFFTAG_SAMPLEFORMAT, &sample_format);
+  if (samples_per_pixel != 1)
+    failAt(where,
+           "{} samples per pixel (colour or extra channels); only single-channel (grey) "
+           "radiographs are supported",
+           samples_per_pixel);
+  uint16_t photometric = PHOTOMETRIC_MINISBLACK;
+  TIFFGetField(tif.get(), TIFFTAG_PHOTOMETRIC, &photometric);
+  if (photometric != PHOTOMETRIC_MINISBLACK)
+    failAt(where, "unsupported photometric interpretation {}; only MinIsBlack grey is supported",
+           describePhotometric(photometric));
+  if (width == 0 || height == 0) failAt(where, "the image has zero size ({}x{})", width, height);
+  if (int64_t{width} * height > kMaxPixels)
+    failAt(where, "the image is {}x{} pixels; more than 2^30 pixels is not supported", width,
+           height);
+
+  Image image;
+  if (sample_format == SAMPLEFORMAT_UINT && bits == 8)
+    image = readSamples<uint8_t>(tif.get(), width, height, messages, where);
+  else if (sample_format == SAMPLEFORMAT_UINT && bits == 16)
+    image = readSamples<uint16_t>(tif.get(), width, height, messages, where);
+  else if (sample_format == SAMPLEFORMAT_UINT && bits == 32)
+    image = readSamples<uint32_t>(tif.get(), width, height, messages, where);
+  else if (sample_format == SAMPLEFORMAT_IEEEFP && bits == 32)
+    image = readSamples<float>(tif.get(), width, height, messages, where);
+  else if (sample_format == SAMPLEFORMAT_IEEEFP && bits == 64)
+    image = readSamples<double>(tif.get(), width, height, messages, where);
+  else
+    failAt(where,
+           "unsupported samples: {} (supported: 8-, 16- or 32-bit unsigned integer, 32- or "
+           "64-bit float)",
+           describeSamples(bits, sample_format));
+
+  for (const std::string& warning : messages.warnings)
+    spdlog::debug("{}: libtiff warning: {}", path.string(), warning);
+  return image;
+}
+
+void writeTiff(const std::filesystem::path& path, const Image& image, TiffFormat format) {
+  const SourceLocation where = SourceLocation::inFile(path.string());
+  if (image.empty()) throw Error("cannot write an empty image", where);
+  for (int y = 0; y < image.height(); ++y)
+    for (int x = 0; x < image.width(); ++x)
+      if (!std::isfinite(image(x, y)))
+        failAt(where, "cannot write pixel ({}, {}) = {}: TIFF radiographs hold finite values", x, y,
+               image(x, y));
+
+  const bool as_uint16 = format == TiffFormat::kUInt16;
+  const size_t sample_bytes = as_uint16 ? sizeof(uint16_t) : sizeof(float);
+  const auto width = static_cast<uint32_t>(image.width());
+  const auto height = static_cast<uint32_t>(image.height());
+  const size_t row_bytes = size_t{width} * sample_bytes;
+  const uint32_t rows_per_strip =
+      static_cast<uint32_t>(std::clamp<size_t>(kStripBytes / row_bytes, 1, height));
+  // Classic TIFF addresses 4 GiB; leave room for the directory and for
+  // deflate's worst case (a few bytes per 16 KiB block).
+  const bool big_tiff = image.size() * sample_bytes > (uint64_t{1} << 32) - (uint64_t{1} << 26);
+
+  AtomicFile file(path);
+  {
+    TiffMessages messages{file.tempPath().string(), {}, {}};
+    const TiffHandle tif = openTiff(file.tempPath(), big_tiff ? "w8" : "w", messages);
+    if (!tif) failAt(where, "cannot create the TIFF file{}", libtiffSays(messages));
+
+    const auto set = [&](ttag_t tag, auto value) {
+      if (TIFFSetField(tif.get(), tag, value) != 1)
+        failAt(where, "cannot set TIFF tag {}{}", tag, libtiffSays(messages));
+    };
+    set(TIFFTAG_IMAGEWIDTH, width);
+    set(TIFFTAG_IMAGELENGTH, height);
+    set(TIFFTAG_SAMPLESPERPIXEL, 1);
+    set(TIFFTAG_BITSPERSAMPLE, as_uint16 ? 16 : 32);
+    set(TIFFTAG_SAMPLEFORMAT, as_uint16 ? SAMPLEFORMAT_UINT : SAMPLEFORMAT_IEEEFP);
+    set(TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
+    set(TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+    set(TIFFTAG_COMPRESSION, COMPRESSION_ADOBE_DEFLATE);
+    if (as_uint16) set(TIFFTAG_PREDICTOR, PREDICTOR_HORIZONTAL);
+    set(TIFFTAG_ROWSPERSTRIP, rows_per_strip);
+    set(TIFFTAG_SOFTWARE, "xgauge");
+
+    // Convert strip by strip (the encoder may also modify its input buffer).
+    std::vector<unsigned char> strip(size_t{rows_per_strip} * row_bytes);
+    for (uint32_t row = 0; row < height; row += rows_per_strip) {
+      const uint32_t rows = std::min(rows_per_strip, height - row);
+      for (uint32_t r = 0; r < rows; ++r) {
+        const float* in = image.row(static_cast<int>(row + r));
+        unsigned char* out = strip.data() + size_t{r} * row_bytes;
+        if (as_uint16) {
+          for (uint32_t x = 0; x < width; ++x) {
+            const auto value = static_cast<uint16_t>(
+                std::lround(std::clamp(static_cast<double>(in[x]), 0.0, 65535.0)));
+            std::memcpy(out + size_t{x} * sizeof(value), &value, sizeof(value));
+          }
+        } else {
+          std::memcpy(out, in, row_bytes);
+        }
+      }
+      const auto bytes = static_cast<tmsize_t>(size_t{rows} * row_bytes);
+      if (TIFFWriteEncodedStrip(tif.get(), TIFFComputeStrip(tif.get(), row, 0), strip.data(),
+                                bytes) != bytes)
+        failAt(where, "cannot write the strip starting at row {}{}", row, libtiffSays(messages));
+    }
+    if (TIFFFlush(tif.get()) != 1)
+      failAt(where, "cannot finish the TIFF file (disk full?){}", libtiffSays(messages));
+  }
+  file.commit();
+}
+
+}  // namespace xgauge

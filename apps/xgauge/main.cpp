@@ -1,0 +1,49 @@
+// xgauge: measure parts from a few X-ray radiographs.
+// The CLI only parses arguments and calls the library; bad input surfaces
+// here as xgauge::Error, printed once, with a non-zero exit status.
+#include "render_command.h"
+
+#include "xgauge/core/error.h"
+#include "xgauge/core/log.h"
+#include "xgauge/core/parallel.h"
+#include "xgauge/core/progress.h"
+
+#include <CLI/CLI.hpp>
+
+#include <cstdio>
+#include <optional>
+
+int main(int argc, char** argv) {
+  CLI::App app{"xgauge: dimensional measurement of parts from a few X-ray radiographs"};
+  app.set_version_flag("--version", "xgauge 0.1.0");
+  app.require_subcommand(1);
+  bool quiet = false, verbose = false;
+  int threads = 0;
+  app.add_flag("-q,--quiet", quiet, "Only warnings and errors; no progress bars");
+  app.add_flag("-v,--verbose", verbose, "Debug messages");
+  app.add_option("-j,--threads", threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+
+  xgauge::cli::RenderArguments render;
+  xgauge::cli::addRenderCommand(app, render);
+
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  }
+
+  xgauge::setupLogging(quiet ? xgauge::Verbosity::kQuiet
+                             : (verbose ? xgauge::Verbosity::kVerbose : xgauge::Verbosity::kNormal));
+  xgauge::setProgressEnabled(!quiet);
+  try {
+    xgauge::ThreadLimit limit(threads);
+    if (app.got_subcommand("render")) xgauge::cli::runRender(render);
+  } catch (const xgauge::Error& e) {
+    std::fprintf(stderr, "xgauge: error: %s\n", e.what());
+    return 1;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "xgauge: error: %s\n", e.what());
+    return 1;
+  }
+  return 0;
+}

@@ -1,0 +1,77 @@
+// Triangle meshes of closed solids, and the checks that make them safe to
+// render: a watertight ray caster needs every edge shared by exactly two
+// triangles with opposite directions and every normal pointing outward.
+#pragma once
+
+#include "xgauge/core/error.h"
+#include "xgauge/core/transform.h"
+
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace xgauge {
+
+// Three vertex indices, counter-clockwise seen from outside the solid: the
+// outward normal is (b - a) x (c - a) (right-hand rule).
+using Triangle = std::array<uint32_t, 3>;
+
+// A closed surface in part coordinates (mm). Vertices are shared between the
+// triangles that meet there (indexed, not a triangle soup).
+struct TriangleMesh {
+  std::vector<Vec3> vertices;
+  std::vector<Triangle> triangles;
+};
+
+// Axis-aligned box, mm. An empty mesh gives min = +inf, max = -inf.
+struct BoundingBox {
+  Vec3 min_mm;
+  Vec3 max_mm;
+  double diagonal() const { return (max_mm - min_mm).norm(); }  // mm
+};
+
+// Signed enclosed volume in mm^3 by the divergence theorem: positive when the
+// triangles face outward. Meaningful for a closed mesh only.
+double signedVolume(const TriangleMesh& mesh);
+
+// Box of all vertices (referenced by a triangle or not).
+BoundingBox boundingBox(const TriangleMesh& mesh);
+
+// Reverses every triangle (outward <-> inward).
+void flipOrientation(TriangleMesh& mesh);
+
+// Outcome of checkClosedMesh: the first problem found, checked in this order.
+struct MeshCheck {
+  enum class Problem {
+    kNone,
+    kEmpty,                    // no triangles
+    kBadIndex,                 // a vertex index out of range
+    kDegenerateTriangle,       // repeated vertex index or zero area
+    kOpenEdge,                 // an edge used by one triangle only
+    kNonManifoldEdge,          // an edge used by more than two triangles
+    kInconsistentOrientation,  // two triangles run along their edge the same way
+    kNoVolume,                 // closed and consistent, but encloses nothing
+    kInward,                   // closed and consistent, negative volume
+  };
+  Problem problem = Problem::kNone;
+  std::string message;      // names the first problem; empty when ok()
+  double volume_mm3 = 0.0;  // signed volume, set when the edges passed
+
+  bool ok() const { return problem == Problem::kNone; }
+};
+
+// Relative tolerance of the zero-area and zero-volume tests: a triangle is
+// degenerate when twice its area is at most kZeroAreaTolerance * d^2, d the
+// bounding box diagonal (rounding noise of collinear points is ~1e-16 d^2).
+inline constexpr double kZeroAreaTolerance = 1e-12;
+
+// Checks that the mesh bounds a solid: no degenerate triangle, every
+// undirected edge used by exactly two triangles in opposite directions
+// (closed, manifold, consistently oriented) and positive volume (outward).
+MeshCheck checkClosedMesh(const TriangleMesh& mesh);
+
+// checkClosedMesh, throwing Error(message, where) on the first problem.
+void requireClosedMesh(const TriangleMesh& mesh, const SourceLocation& where);
+
+}  // namespace xgauge

@@ -1,0 +1,141 @@
+// Parametric part models: a triangle mesh whose topology is fixed and whose
+// vertex positions are functions of named dimensions, described in a JSON
+// file so that a new part needs no recompilation (see parts/*.json and
+// PARTS.md for the reference parts).
+//
+// File format (lengths in mm, angles in degrees; every key is checked, a
+// misspelled one is an error):
+//
+//   key            | contents
+//   ---------------|-----------------------------------------------------------
+//   description    | what the part is, its frame and anything a reader needs
+//   dimensions     | array, in the order the model's values use:
+//                  |   {"name", "nominal", "min", "max", "unit": "mm" | "deg",
+//                  |    "description" (optional), "thesis" (optional, "θ8")}
+//                  | min <= nominal <= max, min < max. Absent for "stl".
+//   constants      | optional array of {"name", "value", "unit" (optional),
+//                  |   "description" (optional)}: fixed values such as L = 40
+//   derived        | optional array of {"name", "expr", "description"
+//                  |   (optional)}, evaluated in order: each may use the
+//                  |   dimensions, constants and earlier derived values
+//   constraints    | optional array of {"expr", "message"}: a valid part has
+//                  |   every expr > 0; message says what breaks otherwise
+//   shape          | one of the objects below
+//
+//   shape "type"   | further keys
+//   ---------------|-----------------------------------------------------------
+//   "extrusion"    | "plane": two axes ["x", "z"]; "profile": [[a, b], ...],
+//                  | a simple polygon in that plane (either winding);
+//                  | "axis": the third axis; "from", "to": its extent. Caps
+//                  | are ear-clipped once, at nominal values.
+//   "revolution"   | "axis"; "profile": [[radius, axial], ...], a simple
+//                  | polygon in the half-plane radius >= 0 (either winding);
+//                  | "segments": N >= 3. A point with radius 0 at nominal is
+//                  | one pole vertex; there must be none or exactly two such
+//                  | neighbours (their segment on the axis closes the
+//                  | profile). Other points become N vertices on the true
+//                  | circle (inscribed polygon), the first on axis u of the
+//                  | right-handed (u, v, axis): x -> (y, z), y -> (z, x),
+//                  | z -> (x, y).
+//   "mesh"         | "vertices": [[x, y, z], ...]; "triangles": [[i, j, k],
+//                  | ...], counter-clockwise seen from outside (checked).
+//   "stl"          | "file": an STL path, relative to the part file.
+//
+// Every coordinate, bound of an extrusion, derived value and constraint is an
+// expression (a JSON string, or a plain number) in muparser syntax: + - * / ^,
+// comparisons, "c ? a : b", and the functions min, max, sum, avg, abs, sqrt,
+// exp, ln, log10, sin, cos, tan, asin, acos, atan, atan2 ... (radians), plus
+// the degree helpers sind, cosd, tand (argument in degrees), asind, acosd,
+// atand, atan2d (result in degrees), rad(deg) and deg(rad), and the constant
+// pi. Vertex orientation of extrusions and revolutions is made outward
+// automatically.
+//
+// Thread safety: evaluation runs precompiled muparser expressions that keep
+// state inside the object, so one PartModel must not be evaluated (evaluate,
+// mesh, validate, values) from several threads at once. A copy compiles its
+// own expressions: give each thread its own copy.
+#pragma once
+
+#include "xgauge/core/transform.h"
+#include "xgauge/geometry/mesh.h"
+
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <span>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace xgauge {
+
+struct Dimension {
+  std::string name;
+  double nominal = 0.0;  // in `unit`
+  double min = 0.0;      // valid values lie in [min, max]
+  double max = 0.0;
+  std::string unit;         // "mm" or "deg"
+  std::string description;  // may be empty
+  std::string thesis;       // the thesis's symbol, such as "θ8"; may be empty
+};
+
+class PartModel {
+ public:
+  // Reads a part model file. Throws Error (file, key path, and for
+  // expressions muparser's message and position) for bad input, and when
+  // the nominal mesh is not closed and outward or the nominal values break a
+  // constraint.
+  static PartModel load(const std::filesystem::path& path);
+  // A fixed mesh without dimensions (see readStl).
+  static PartModel fromStl(const std::filesystem::path& path);
+
+  PartModel(const PartModel& other);
+  PartModel& operator=(const PartModel& other);
+  PartModel(PartModel&&) noexcept;
+  PartModel& operator=(PartModel&&) noexcept;
+  ~PartModel();
+
+  const std::string& name() const;  // the file name without extension
+  const std::string& description() const;
+  const std::vector<Dimension>& dimensions() const;
+  std::vector<double> nominalValues() const;
+  // Throws Error "unknown dimension 'x' (known: a, b, c)".
+  int dimensionIndex(std::string_view name) const;
+
+  // The nominal values with some replaced by name. Throws Error for an
+  // unknown name or a value outside its dimension's bounds.
+  std::vector<double> values(const std::map<std::string, double>& overrides) const;
+
+  // Throws Error unless every value lies within its bounds and every
+  // constraint holds, naming the dimension or the constraint and its message.
+  // `values` has one entry per dimension, in declaration order.
+  void validate(std::span<const double> values) const;
+
+  // Vertex positions (mm, part frame) for these dimension values: always
+  // vertexCount() vertices in the same order, matching triangles(). The hot
+  // path of a fit: no allocation once `out` has the capacity, no lookups by
+  // name. Does not check bounds or constraints (see validate). Throws Error
+  // naming the values if an expression is not finite or the surface would
+  // turn inside out: an extrusion cap triangle turning over (the profile
+  // folds, or moved so far from nominal that the caps' triangulation, fixed
+  // at nominal values, no longer fits it) or a revolution profile point
+  // reaching the axis.
+  void evaluate(std::span<const double> values, std::vector<Vec3>& out) const;
+
+  // validate + evaluate + triangles.
+  TriangleMesh mesh(std::span<const double> values) const;
+
+  // Fixed when the model is loaded, outward at nominal values.
+  const std::vector<Triangle>& triangles() const;
+  size_t vertexCount() const;
+
+ private:
+  struct Definition;
+  class Evaluator;
+  PartModel(std::shared_ptr<const Definition> definition, std::unique_ptr<Evaluator> evaluator);
+
+  std::shared_ptr<const Definition> definition_;  // immutable, shared by copies
+  std::unique_ptr<Evaluator> evaluator_;          // compiled expressions, per copy
+};
+
+}  // namespace xgauge

@@ -1,0 +1,70 @@
+// Projection geometry as plain data (PARTS.md frames).
+//
+// World frame: detector plane z = 0, X-ray source (focal spot centre) at
+// (0, 0, D). Seen from the source, world x points right and y up. Detector
+// pixel (u, v): u = column from the left, v = row from the top; pixel centres
+// at continuous coordinates (u + 0.5, v + 0.5). The principal point (cx, cy)
+// is the continuous pixel coordinate of the foot of the perpendicular from the
+// source; a continuous pixel coordinate (pu, pv) is the world point
+// ((pu - cx) * pitch_u, (cy - pv) * pitch_v, 0).
+//
+// Machine JSON keys:
+//   source_detector_distance_mm      D, > 0
+//   detector.columns, detector.rows  detector size in pixels (1..65536)
+//   detector.pixel_pitch_mm          [pitch_u, pitch_v] in mm, > 0
+//   detector.principal_point_px      [cx, cy]; default: the detector centre
+//   description                      optional free text
+//
+// Pose JSON keys (a pose maps part to world coordinates, x_w = R x_p + t):
+//   rotation_deg     [rx, ry, rz], R = Rz(rz) Ry(ry) Rx(rx) (fixed axes, x first)
+//   translation_mm   [tx, ty, tz]
+// or
+//   matrix           16 numbers, row-major 4x4 world_from_part
+//   description      optional free text
+#pragma once
+
+#include "xgauge/core/config.h"
+#include "xgauge/core/transform.h"
+#include "xgauge/image/image.h"
+
+#include <filesystem>
+
+namespace xgauge {
+
+struct Machine {
+  double source_detector_distance_mm = 1000.0;
+  int columns = 1024;
+  int rows = 1024;
+  double pitch_u_mm = 0.1;
+  double pitch_v_mm = 0.1;
+  double cx_px = 512.0;
+  double cy_px = 512.0;
+  std::string description;
+
+  static Machine fromConfig(const ConfigNode& node);  // validates; does not call finish()
+  static Machine load(const std::filesystem::path& path);
+  nlohmann::json toJson() const;
+  // Throws Error if a field is out of range.
+  void validate() const;
+
+  PixelRect detectorRect() const { return {0, 0, columns, rows}; }
+  Vec3 sourceWorld() const { return {0.0, 0.0, source_detector_distance_mm}; }
+  // World point on the detector plane of a continuous pixel coordinate.
+  Vec3 detectorPoint(double pu, double pv) const {
+    return {(pu - cx_px) * pitch_u_mm, (cy_px - pv) * pitch_v_mm, 0.0};
+  }
+  // Continuous pixel coordinate where the ray from the source through a world
+  // point (z < D) meets the detector.
+  Vec2 project(const Vec3& world) const {
+    const double magnification = source_detector_distance_mm / (source_detector_distance_mm - world.z());
+    return {world.x() * magnification / pitch_u_mm + cx_px,
+            cy_px - world.y() * magnification / pitch_v_mm};
+  }
+};
+
+Pose poseFromConfig(const ConfigNode& node);  // does not call finish()
+Pose loadPose(const std::filesystem::path& path);
+// Writes both the Euler angles and the 4x4 matrix, so a pose is never ambiguous.
+nlohmann::json poseToJson(const Pose& pose);
+
+}  // namespace xgauge

@@ -1,0 +1,325 @@
+#include "xgauge/geometry/part_model.h"
+
+#include "expression.h"
+#include "shape.h"
+
+#include "xgauge/core/config.h"
+#include "xgauge/geometry/stl.h"
+
+#include <fmt/ranges.h>
+
+#include <algorithm>
+#include <cmath>
+#include <set>
+
+namespace xgauge {
+
+// What the file says, with the topology fixed at nominal values. Immutable
+// once built; shared by copies of a PartModel.
+struct PartModel::Definition {
+  struct Constraint {
+    ExpressionSource expr;  // valid when > 0
+    std::string message;
+  };
+
+  std::string name;  // the file name without extension
+  std::string description;
+  std::vector<Dimension> dimensions;
+  // Variables: the dimension names, then the derived names.
+  Symbols symbols;
+  std::vector<ExpressionSource> derived;  // derived k sees dimensions and derived < k
+  std::vector<Constraint> constraints;
+  std::vector<ExpressionSource> scalars;  // the shape's, see ShapeSpec
+  SourceLocation shape_where;
+  std::unique_ptr<const Shape> shape;
+
+  // "width=20.977 mm, thickness=13.02 mm" for error messages.
+  std::string describe(std::span<const double> values) const {
+    std::vector<std::string> parts;
+    for (size_t i = 0; i < dimensions.size(); ++i)
+      parts.push_back(fmt::format("{}={} {}", dimensions[i].name, values[i], dimensions[i].unit));
+    return parts.empty() ? std::string("no dimensions") : fmt::format("{}", fmt::join(parts, ", "));
+  }
+};
+
+// Compiled expressions bound to one scratch table. Built once per PartModel
+// object; the table is never resized, as muparser holds its addresses.
+class PartModel::Evaluator {
+ public:
+  explicit Evaluator(const Definition& definition)
+      : scope_(definition.symbols.variables.size(), 0.0), scalars_(definition.scalars.size(), 0.0) {
+    const Symbols& symbols = definition.symbols;
+    const size_t dimension_count = definition.dimensions.size();
+    for (size_t k = 0; k < definition.derived.size(); ++k)
+      derived_.emplace_back(definition.derived[k], symbols, dimension_count + k, scope_.data());
+    for (const auto& constraint : definition.constraints)
+      constraints_.emplace_back(constraint.expr, symbols, scope_.size(), scope_.data());
+    for (const auto& scalar : definition.scalars)
+      scalar_expressions_.emplace_back(scalar, symbols, scope_.size(), scope_.data());
+  }
+
+  // Takes the dimension values, then computes the derived values and the
+  // shape's scalars. Returns the first expression whose value is not finite,
+  // or nullptr.
+  const ExpressionSource* compute(const Definition& definition, std::span<const double> values) {
+    std::copy(values.begin(), values.end(), scope_.begin());
+    for (size_t k = 0; k < derived_.size(); ++k) {
+      double& value = scope_[values.size() + k];
+      value = derived_[k].evaluate();
+      if (!std::isfinite(value)) return &definition.derived[k];
+    }
+    for (size_t i = 0; i < scalars_.size(); ++i) {
+      scalars_[i] = scalar_expressions_[i].evaluate();
+      if (!std::isfinite(scalars_[i])) return &definition.scalars[i];
+    }
+    return nullptr;
+  }
+
+  // Constraint i for the values of the last compute().
+  double constraint(size_t i) const { return constraints_[i].evaluate(); }
+  std::span<const double> scalars() const { return scalars_; }
+
+ private:
+  std::vector<double> scope_;  // dimension values, then derived values
+  std::vector<double> scalars_;
+  std::vector<Expression> derived_;
+  std::vector<Expression> constraints_;
+  std::vector<Expression> scalar_expressions_;
+};
+
+namespace {
+
+std::string optionalString(const ConfigNode& node, std::string_view key) {
+  const auto found = node.find(key);
+  return found ? found->string() : std::string();
+}
+
+std::vector<double> nominalOf(const std::vector<Dimension>& dimensions) {
+  std::vector<double> values;
+  for (const Dimension& dimension : dimensions) values.push_back(dimension.nominal);
+  return values;
+}
+
+std::string readUnit(const ConfigNode& unit) {
+  std::string value = unit.string();
+  if (value != "mm" && value != "deg")
+    unit.fail(fmt::format("unknown unit '{}' (known: mm, deg)", value));
+  return value;
+}
+
+// A name for a dimension, constant or derived value: an identifier, not a
+// built-in, not taken.
+std::string readName(const ConfigNode& item, std::set<std::string>& taken) {
+  const ConfigNode node = item.at("name");
+  std::string name = node.string();
+  if (!isIdentifier(name))
+    node.fail(
+        fmt::format("'{}' is not a valid name: use letters, digits and '_', starting with "
+                    "a letter or '_'",
+                    name));
+  if (isReservedName(name))
+    node.fail(fmt::format("'{}' is the name of a built-in function or constant", name));
+  if (!taken.insert(name).second) node.fail(fmt::format("'{}' is defined twice", name));
+  return name;
+}
+
+}  // namespace
+
+PartModel::PartModel(std::shared_ptr<const Definition> definition,
+                     std::unique_ptr<Evaluator> evaluator)
+    : definition_(std::move(definition)), evaluator_(std::move(evaluator)) {}
+
+PartModel::PartModel(const PartModel& other)
+    : definition_(other.definition_), evaluator_(std::make_unique<Evaluator>(*definition_)) {}
+
+PartModel& PartModel::operator=(const PartModel& other) {
+  if (this != &other) {
+    definition_ = other.definition_;
+    evaluator_ = std::make_unique<Evaluator>(*definition_);
+  }
+  return *this;
+}
+
+PartModel::PartModel(PartModel&&) noexcept = default;
+PartModel& PartModel::operator=(PartModel&&) noexcept = default;
+PartModel::~PartModel() = default;
+
+PartModel PartModel::load(const std::filesystem::path& path) {
+  const ConfigNode root = ConfigNode::loadFile(path);
+  auto definition = std::make_shared<Definition>();
+  Definition& d = *definition;
+  d.name = path.stem().string();
+  d.description = root.get<std::string>("description");
+
+  // The shape first: an STL shape takes no dimensions.
+  const ShapeSpec spec = readShapeSpec(root.at("shape"), path.parent_path());
+  d.shape_where = spec.where;
+  d.scalars = spec.scalars;
+  if (spec.type == ShapeType::kStl) {
+    for (const char* key : {"dimensions", "constants", "derived", "constraints"})
+      if (const auto node = root.find(key))
+        node->fail(
+            "a part with an \"stl\" shape has no dimensions, constants, derived values "
+            "or constraints");
+  } else {
+    std::set<std::string> taken;
+    const ConfigNode dimensions = root.at("dimensions");
+    for (size_t i = 0; i < dimensions.size(); ++i) {
+      const ConfigNode item = dimensions[i];
+      Dimension dimension;
+      dimension.name = readName(item, taken);
+      dimension.nominal = item.get<double>("nominal");
+      dimension.min = item.get<double>("min");
+      dimension.max = item.get<double>("max");
+      dimension.unit = readUnit(item.at("unit"));
+      dimension.description = optionalString(item, "description");
+      dimension.thesis = optionalString(item, "thesis");
+      if (!(dimension.min < dimension.max))
+        item.fail(fmt::format("min ({}) must be less than max ({})", dimension.min, dimension.max));
+      if (dimension.nominal < dimension.min || dimension.nominal > dimension.max)
+        item.fail(fmt::format("nominal {} lies outside [min, max] = [{}, {}]", dimension.nominal,
+                              dimension.min, dimension.max));
+      d.symbols.variables.push_back(dimension.name);
+      d.dimensions.push_back(std::move(dimension));
+    }
+    if (const auto constants = root.find("constants")) {
+      for (size_t i = 0; i < constants->size(); ++i) {
+        const ConfigNode item = (*constants)[i];
+        std::string name = readName(item, taken);
+        const double value = item.get<double>("value");
+        if (const auto unit = item.find("unit")) readUnit(*unit);  // documentation only
+        optionalString(item, "description");
+        d.symbols.constants.emplace_back(std::move(name), value);
+      }
+    }
+    if (const auto derived = root.find("derived")) {
+      for (size_t i = 0; i < derived->size(); ++i) {
+        const ConfigNode item = (*derived)[i];
+        d.symbols.variables.push_back(readName(item, taken));
+        d.derived.push_back(readExpression(item.at("expr")));
+        optionalString(item, "description");  // documentation only
+      }
+    }
+    if (const auto constraints = root.find("constraints")) {
+      for (size_t i = 0; i < constraints->size(); ++i) {
+        const ConfigNode item = (*constraints)[i];
+        d.constraints.push_back(
+            {readExpression(item.at("expr")), item.get<std::string>("message")});
+      }
+    }
+  }
+  root.finish();
+
+  // Compile, evaluate at nominal values, and fix the topology there.
+  auto evaluator = std::make_unique<Evaluator>(d);
+  const std::vector<double> nominal = nominalOf(d.dimensions);
+  if (const ExpressionSource* bad = evaluator->compute(d, nominal))
+    throw Error(fmt::format("expression '{}' is not finite at nominal values", bad->text),
+                bad->where);
+  d.shape = buildShape(spec, evaluator->scalars());
+
+  PartModel model(std::move(definition), std::move(evaluator));
+  try {
+    model.validate(nominal);
+  } catch (const Error& e) {
+    throw Error("the nominal values are not valid: " + e.message(), e.where());
+  }
+  return model;
+}
+
+PartModel PartModel::fromStl(const std::filesystem::path& path) {
+  auto definition = std::make_shared<Definition>();
+  definition->name = path.stem().string();
+  definition->description = fmt::format("fixed mesh read from {}", path.string());
+  ShapeSpec spec;
+  spec.type = ShapeType::kStl;
+  spec.where = SourceLocation::inFile(path.string());
+  spec.stl = readStl(path);
+  definition->shape_where = spec.where;
+  definition->shape = buildShape(spec, {});
+  auto evaluator = std::make_unique<Evaluator>(*definition);
+  return PartModel(std::move(definition), std::move(evaluator));
+}
+
+const std::string& PartModel::name() const { return definition_->name; }
+const std::string& PartModel::description() const { return definition_->description; }
+const std::vector<Dimension>& PartModel::dimensions() const { return definition_->dimensions; }
+const std::vector<Triangle>& PartModel::triangles() const {
+  return definition_->shape->triangles();
+}
+size_t PartModel::vertexCount() const { return definition_->shape->vertexCount(); }
+
+std::vector<double> PartModel::nominalValues() const { return nominalOf(definition_->dimensions); }
+
+int PartModel::dimensionIndex(std::string_view name) const {
+  const auto& dimensions = definition_->dimensions;
+  for (size_t i = 0; i < dimensions.size(); ++i)
+    if (dimensions[i].name == name) return static_cast<int>(i);
+  std::vector<std::string_view> known;
+  for (const Dimension& dimension : dimensions) known.push_back(dimension.name);
+  fail("unknown dimension '{}' of part '{}' (known: {})", name, definition_->name,
+       known.empty() ? std::string("none") : fmt::format("{}", fmt::join(known, ", ")));
+}
+
+namespace {
+
+void requireWithinBounds(const Dimension& dimension, double value, const std::string& part) {
+  if (!(value >= dimension.min && value <= dimension.max))
+    fail("{} = {} {} is outside its bounds [{}, {}] {} (part '{}')", dimension.name, value,
+         dimension.unit, dimension.min, dimension.max, dimension.unit, part);
+}
+
+}  // namespace
+
+std::vector<double> PartModel::values(const std::map<std::string, double>& overrides) const {
+  std::vector<double> result = nominalValues();
+  for (const auto& [name, value] : overrides) {
+    const auto index = static_cast<size_t>(dimensionIndex(name));
+    requireWithinBounds(definition_->dimensions[index], value, definition_->name);
+    result[index] = value;
+  }
+  return result;
+}
+
+void PartModel::validate(std::span<const double> values) const {
+  const Definition& d = *definition_;
+  XG_CHECK(values.size() == d.dimensions.size(), "{} values for {} dimensions", values.size(),
+           d.dimensions.size());
+  for (size_t i = 0; i < values.size(); ++i)
+    requireWithinBounds(d.dimensions[i], values[i], d.name);
+  if (const ExpressionSource* bad = evaluator_->compute(d, values))
+    throw Error(fmt::format("expression '{}' is not finite at {}", bad->text, d.describe(values)),
+                bad->where);
+  for (size_t i = 0; i < d.constraints.size(); ++i) {
+    const double value = evaluator_->constraint(i);
+    if (!(value > 0))
+      throw Error(fmt::format("constraint violated: {} ({} = {}, must be > 0) at {}",
+                              d.constraints[i].message, d.constraints[i].expr.text, value,
+                              d.describe(values)),
+                  d.constraints[i].expr.where);
+  }
+}
+
+void PartModel::evaluate(std::span<const double> values, std::vector<Vec3>& out) const {
+  const Definition& d = *definition_;
+  XG_CHECK(values.size() == d.dimensions.size(), "{} values for {} dimensions", values.size(),
+           d.dimensions.size());
+  if (const ExpressionSource* bad = evaluator_->compute(d, values)) [[unlikely]]
+    throw Error(fmt::format("expression '{}' is not finite at {}", bad->text, d.describe(values)),
+                bad->where);
+  out.resize(d.shape->vertexCount());
+  d.shape->place(evaluator_->scalars(), out);
+  if (const std::string_view fold = d.shape->fold(evaluator_->scalars()); !fold.empty())
+      [[unlikely]]
+    throw Error(fmt::format("{} at {}", fold, d.describe(values)), d.shape_where);
+}
+
+TriangleMesh PartModel::mesh(std::span<const double> values) const {
+  validate(values);
+  TriangleMesh mesh;
+  evaluate(values, mesh.vertices);
+  mesh.triangles = triangles();
+  return mesh;
+}
+
+}  // namespace xgauge

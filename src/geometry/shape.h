@@ -1,0 +1,74 @@
+// The shapes a part model file describes (its "shape" object): how they are
+// read, how their fixed topology is built from the nominal values, and how
+// their vertices are placed for other values. Keys are documented in
+// xgauge/geometry/part_model.h.
+#pragma once
+
+#include "expression.h"
+
+#include "xgauge/core/config.h"
+#include "xgauge/geometry/mesh.h"
+
+#include <filesystem>
+#include <memory>
+#include <span>
+#include <string_view>
+#include <vector>
+
+namespace xgauge {
+
+enum class ShapeType { kExtrusion, kRevolution, kMesh, kStl };
+
+// A shape as read from the file. Its scalars are the expressions whose values
+// place the vertices:
+//   extrusion:  a_0, b_0, a_1, b_1, ... (profile), then from, to
+//   revolution: r_0, h_0, r_1, h_1, ... (profile: radius, axial position)
+//   mesh:       x_0, y_0, z_0, x_1, ...
+//   stl:        none (the vertices are fixed)
+struct ShapeSpec {
+  ShapeType type = ShapeType::kMesh;
+  SourceLocation where;  // the "shape" object
+  std::vector<ExpressionSource> scalars;
+  // extrusion: the profile's two axes, then the extrusion axis;
+  // revolution: (u, v, axis), right-handed, angle measured from u towards v.
+  std::array<int, 3> axes{0, 1, 2};
+  int segments = 0;                 // revolution
+  std::vector<Triangle> triangles;  // mesh
+  TriangleMesh stl;                 // stl
+};
+
+// Reads the "shape" object; relative STL paths are taken from `directory`.
+ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& directory);
+
+// A shape with its topology fixed. Vertex count and order never change.
+class Shape {
+ public:
+  virtual ~Shape() = default;
+
+  const std::vector<Triangle>& triangles() const { return triangles_; }
+  size_t vertexCount() const { return vertex_count_; }
+
+  // Vertex positions (mm, part frame) from the evaluated scalars; `out` has
+  // vertexCount() elements. Allocates nothing.
+  virtual void place(std::span<const double> scalars, std::span<Vec3> out) const = 0;
+
+  // Why these scalars would turn part of the surface inside out, or empty.
+  // Extrusions: a cap triangle turning over, because the profile folds over
+  // itself or moved so far from nominal that the caps' triangulation (fixed
+  // at nominal values) no longer fits it. Revolutions: a profile point
+  // reaching the axis. Cheap and allocation-free; it catches folds, not
+  // every self-intersection.
+  virtual std::string_view fold(std::span<const double> /*scalars*/) const { return {}; }
+
+ protected:
+  std::vector<Triangle> triangles_;
+  size_t vertex_count_ = 0;
+};
+
+// Builds the topology from the nominal scalars, orients extrusions and
+// revolutions outward, and checks the nominal mesh is closed and outward.
+// Throws Error located in the shape object.
+std::unique_ptr<const Shape> buildShape(const ShapeSpec& spec,
+                                        std::span<const double> nominal_scalars);
+
+}  // namespace xgauge

@@ -1,0 +1,106 @@
+#include "xgauge/xray/machine.h"
+
+#include <cmath>
+
+namespace xgauge {
+
+namespace {
+
+std::array<double, 2> pair(const ConfigNode& node, double min, double max) {
+  if (node.size() != 2) node.fail(fmt::format("expected 2 numbers, got {}", node.size()));
+  return {node[0].number(min, max), node[1].number(min, max)};
+}
+
+Vec3 triple(const ConfigNode& node, double limit) {
+  if (node.size() != 3) node.fail(fmt::format("expected 3 numbers, got {}", node.size()));
+  return {node[0].number(-limit, limit), node[1].number(-limit, limit),
+          node[2].number(-limit, limit)};
+}
+
+}  // namespace
+
+Machine Machine::fromConfig(const ConfigNode& node) {
+  Machine m;
+  m.source_detector_distance_mm = node.at("source_detector_distance_mm").number(1.0, 1e5);
+  const ConfigNode detector = node.at("detector");
+  m.columns = static_cast<int>(detector.at("columns").number(1, 65536));
+  m.rows = static_cast<int>(detector.at("rows").number(1, 65536));
+  if (detector.at("columns").number() != m.columns) detector.at("columns").fail("expected a whole number");
+  if (detector.at("rows").number() != m.rows) detector.at("rows").fail("expected a whole number");
+  const auto pitch = pair(detector.at("pixel_pitch_mm"), 1e-6, 100.0);
+  m.pitch_u_mm = pitch[0];
+  m.pitch_v_mm = pitch[1];
+  if (auto pp = detector.find("principal_point_px")) {
+    const auto c = pair(*pp, -1e6, 1e6);
+    m.cx_px = c[0];
+    m.cy_px = c[1];
+  } else {
+    m.cx_px = 0.5 * m.columns;
+    m.cy_px = 0.5 * m.rows;
+  }
+  m.description = node.get<std::string>("description", "");
+  return m;
+}
+
+Machine Machine::load(const std::filesystem::path& path) {
+  const ConfigNode root = ConfigNode::loadFile(path);
+  Machine m = fromConfig(root);
+  root.finish();
+  return m;
+}
+
+void Machine::validate() const {
+  if (!(source_detector_distance_mm > 0) || !std::isfinite(source_detector_distance_mm))
+    fail("source-detector distance must be positive, got {}", source_detector_distance_mm);
+  if (columns < 1 || rows < 1) fail("detector size must be positive, got {}x{}", columns, rows);
+  if (!(pitch_u_mm > 0) || !(pitch_v_mm > 0))
+    fail("pixel pitch must be positive, got {} x {}", pitch_u_mm, pitch_v_mm);
+  if (!std::isfinite(cx_px) || !std::isfinite(cy_px)) fail("principal point must be finite");
+}
+
+nlohmann::json Machine::toJson() const {
+  nlohmann::json out = {
+      {"source_detector_distance_mm", source_detector_distance_mm},
+      {"detector",
+       {{"columns", columns},
+        {"rows", rows},
+        {"pixel_pitch_mm", {pitch_u_mm, pitch_v_mm}},
+        {"principal_point_px", {cx_px, cy_px}}}}};
+  if (!description.empty()) out["description"] = description;
+  return out;
+}
+
+Pose poseFromConfig(const ConfigNode& node) {
+  node.get<std::string>("description", "");  // free text, allowed
+  if (auto matrix = node.find("matrix")) {
+    if (node.has("rotation_deg") || node.has("translation_mm"))
+      node.fail("give either 'matrix' or 'rotation_deg' and 'translation_mm', not both");
+    if (matrix->size() != 16) matrix->fail(fmt::format("expected 16 numbers, got {}", matrix->size()));
+    Mat4 m;
+    for (int i = 0; i < 16; ++i) m(i / 4, i % 4) = (*matrix)[static_cast<size_t>(i)].number();
+    try {
+      return Pose::fromMatrix(m);
+    } catch (const Error& e) {
+      matrix->fail(e.message());
+    }
+  }
+  const Vec3 angles = node.has("rotation_deg") ? triple(node.at("rotation_deg"), 1e4) : Vec3::Zero();
+  return Pose::fromEulerDeg(angles, triple(node.at("translation_mm"), 1e6));
+}
+
+Pose loadPose(const std::filesystem::path& path) {
+  const ConfigNode root = ConfigNode::loadFile(path);
+  Pose pose = poseFromConfig(root);
+  root.finish();
+  return pose;
+}
+
+nlohmann::json poseToJson(const Pose& pose) {
+  const Vec3 angles = pose.eulerDeg();
+  const Vec3& t = pose.translation_mm;
+  return {{"rotation_deg", {angles.x(), angles.y(), angles.z()}},
+          {"translation_mm", {t.x(), t.y(), t.z()}},
+          {"matrix", pose.rowMajor()}};
+}
+
+}  // namespace xgauge

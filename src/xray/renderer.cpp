@@ -1,0 +1,258 @@
+#include "xgauge/xray/renderer.h"
+
+#include "rasterizer.h"
+
+#include <tbb/enumerable_thread_specific.h>
+#include <tbb/parallel_for.h>
+
+namespace xgauge {
+
+using raster::SceneSetup;
+using raster::TriangleSetup;
+
+namespace {
+
+PixelRect resolveRegion(const Machine& machine, const RenderOptions& options) {
+  machine.validate();
+  if (options.samples_per_axis < 1 || options.samples_per_axis > 16)
+    fail("samples per pixel axis must be 1 to 16, got {}", options.samples_per_axis);
+  if (options.region.empty()) return machine.detectorRect();
+  if (!machine.detectorRect().contains(options.region))
+    fail("render region {}x{}+{}+{} lies outside the {}x{} detector", options.region.width,
+         options.region.height, options.region.x, options.region.y, machine.columns,
+         machine.rows);
+  return options.region;
+}
+
+// A band of whole pixel rows, in sample rows [row_begin, row_end).
+struct Band {
+  int row_begin;
+  int row_end;
+};
+
+// Sample-space layout of the part's footprint, aligned to whole pixels.
+struct Footprint {
+  int n;
+  int col_begin, col_end;  // sample columns [col_begin, col_end)
+  std::vector<Band> bands;
+  std::vector<std::vector<uint32_t>> bins;  // triangles per band, mesh order
+  int width() const { return col_end - col_begin; }
+};
+
+Footprint layoutFootprint(const SceneSetup& scene, int n) {
+  Footprint f;
+  f.n = n;
+  f.col_begin = scene.kx0 / n * n;
+  f.col_end = (scene.kx1 / n + 1) * n;
+  const int row_begin = scene.ky0 / n * n, row_end = (scene.ky1 / n + 1) * n;
+  // Band height: enough bands to keep every thread busy, each buffer within
+  // about 1 MiB so it stays in cache.
+  const int pixel_rows = (row_end - row_begin) / n;
+  const int threads = std::max(1, tbb::this_task_arena::max_concurrency());
+  const int by_memory = std::max(1, static_cast<int>((1 << 20) / (8 * f.width() * n)));
+  const int by_threads = std::max(1, (pixel_rows + 8 * threads - 1) / (8 * threads));
+  const int band_rows = std::min(by_memory, by_threads) * n;
+  for (int r = row_begin; r < row_end; r += band_rows)
+    f.bands.push_back({r, std::min(row_end, r + band_rows)});
+  // Bin the triangles by band, keeping mesh order within each bin.
+  f.bins.resize(f.bands.size());
+  const auto band_of = [&](int row) { return static_cast<size_t>((row - row_begin) / band_rows); };
+  for (uint32_t i = 0; i < scene.triangles.size(); ++i) {
+    const TriangleSetup& t = scene.triangles[i];
+    for (size_t b = band_of(t.ky0); b <= band_of(t.ky1); ++b) f.bins[b].push_back(i);
+  }
+  return f;
+}
+
+// Distance from the source to each sample's detector point: sqrt(px2[col] + py2d2[row]).
+struct SampleDistances {
+  std::vector<double> px2;  // indexed by sample column - col_begin
+  double d2;
+  const Machine* machine;
+  int n;
+  double py2d2(int sample_row) const {
+    const double py = (machine->cy_px - (sample_row + 0.5) / n) * machine->pitch_v_mm;
+    return py * py + d2;
+  }
+};
+
+SampleDistances sampleDistances(const Machine& machine, const Footprint& f) {
+  SampleDistances s{{}, machine.source_detector_distance_mm * machine.source_detector_distance_mm,
+                    &machine, f.n};
+  s.px2.resize(static_cast<size_t>(f.width()));
+  for (int k = 0; k < f.width(); ++k) {
+    const double px = ((f.col_begin + k + 0.5) / f.n - machine.cx_px) * machine.pitch_u_mm;
+    s.px2[static_cast<size_t>(k)] = px * px;
+  }
+  return s;
+}
+
+// Adds sigma / m over one triangle's spans inside a band to `sum` (row-major,
+// band rows x footprint width).
+void accumulateTriangle(const TriangleSetup& t, const Band& band, const Footprint& f,
+                        double* sum) {
+  const double sigma = t.sigma;
+  const size_t width = static_cast<size_t>(f.width());
+  raster::forEachSpan(t, band.row_begin, band.row_end, [&](int line, int k0, int k1) {
+    if (t.by_rows) {
+      const double across = t.gy * ((line + 0.5) - t.y[0]);
+      double* row = sum + static_cast<size_t>(line - band.row_begin) * width;
+      for (int k = k0; k <= k1; ++k)
+        row[k - f.col_begin] += sigma / t.magnification(t.gx * ((k + 0.5) - t.x[0]), across);
+    } else {
+      const double across = t.gx * ((line + 0.5) - t.x[0]);
+      double* column = sum + (line - f.col_begin);
+      for (int k = k0; k <= k1; ++k)
+        column[static_cast<size_t>(k - band.row_begin) * width] +=
+            sigma / t.magnification(across, t.gy * ((k + 0.5) - t.y[0]));
+    }
+  });
+}
+
+// Renders value(path_mm) averaged over each pixel's samples into `out`
+// (resized to the region); `background` where the part's footprint is not.
+template <typename T, typename Shade>
+void renderPixels(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
+                  double background, Shade shade, ImageT<T>& out) {
+  const PixelRect region = resolveRegion(machine, options);
+  const int n = options.samples_per_axis;
+  const SceneSetup scene =
+      raster::setupScene(machine, mesh.vertices_mm, mesh.triangles, n, region);
+  if (out.width() != region.width || out.height() != region.height)
+    out.resize(region.width, region.height);
+
+  PixelRect footprint_px;
+  if (!scene.empty())
+    footprint_px = {scene.kx0 / n, scene.ky0 / n, scene.kx1 / n + 1 - scene.kx0 / n,
+                    scene.ky1 / n + 1 - scene.ky0 / n};
+  // Background outside the footprint.
+  tbb::parallel_for(0, region.height, [&](int y) {
+    T* row = out.row(y);
+    const int v = region.y + y;
+    if (v < footprint_px.y || v >= footprint_px.bottom()) {
+      std::fill_n(row, region.width, static_cast<T>(background));
+    } else {
+      std::fill_n(row, footprint_px.x - region.x, static_cast<T>(background));
+      std::fill(row + (footprint_px.right() - region.x), row + region.width,
+                static_cast<T>(background));
+    }
+  });
+  if (scene.empty()) return;
+
+  const Footprint f = layoutFootprint(scene, n);
+  const SampleDistances distances = sampleDistances(machine, f);
+  const double inv_samples = 1.0 / (n * n);
+  tbb::enumerable_thread_specific<std::vector<double>> buffers;
+  tbb::parallel_for(size_t{0}, f.bands.size(), [&](size_t b) {
+    const Band& band = f.bands[b];
+    std::vector<double>& sum = buffers.local();
+    const size_t width = static_cast<size_t>(f.width());
+    sum.assign(static_cast<size_t>(band.row_end - band.row_begin) * width, 0.0);
+    for (uint32_t i : f.bins[b]) accumulateTriangle(scene.triangles[i], band, f, sum.data());
+    // Resolve: path per sample, shade, average over the pixel's samples.
+    for (int v = band.row_begin / n; v < band.row_end / n; ++v) {
+      T* out_row = out.row(v - region.y);
+      for (int u = f.col_begin / n; u < f.col_end / n; ++u) {
+        double value = 0.0;
+        for (int j = 0; j < n; ++j) {
+          const int sample_row = v * n + j;
+          const double py2d2 = distances.py2d2(sample_row);
+          const double* s = sum.data() + static_cast<size_t>(sample_row - band.row_begin) * width;
+          for (int i = 0; i < n; ++i) {
+            const size_t k = static_cast<size_t>(u * n + i - f.col_begin);
+            const double path = s[k] == 0.0 ? 0.0
+                                             : std::max(0.0, s[k] * std::sqrt(distances.px2[k] + py2d2));
+            value += shade(path);
+          }
+        }
+        out_row[u - region.x] = static_cast<T>(value * inv_samples);
+      }
+    }
+  });
+}
+
+}  // namespace
+
+void poseVertices(const Pose& pose, std::span<const Vec3> part_vertices,
+                  std::vector<Vec3>& world_vertices) {
+  world_vertices.resize(part_vertices.size());
+  for (size_t i = 0; i < part_vertices.size(); ++i)
+    world_vertices[i] = pose.apply(part_vertices[i]);
+}
+
+void renderPathLength(const Machine& machine, const WorldMesh& mesh,
+                      const RenderOptions& options, ImageT<double>& out) {
+  renderPixels(machine, mesh, options, 0.0, [](double path) { return path; }, out);
+}
+
+void renderPathLength(const Machine& machine, const WorldMesh& mesh,
+                      const RenderOptions& options, Image& out) {
+  renderPixels(machine, mesh, options, 0.0, [](double path) { return path; }, out);
+}
+
+void renderIntensity(const Machine& machine, const WorldMesh& mesh,
+                     const TransmissionTable& transmission, const RenderOptions& options,
+                     Image& out) {
+  renderPixels(machine, mesh, options, 1.0,
+               [&](double path) { return path == 0.0 ? 1.0 : transmission(path); }, out);
+}
+
+RenderDiagnostics renderDiagnostics(const Machine& machine, const WorldMesh& mesh,
+                                    const RenderOptions& options) {
+  const PixelRect region = resolveRegion(machine, options);
+  const int n = options.samples_per_axis;
+  const SceneSetup scene =
+      raster::setupScene(machine, mesh.vertices_mm, mesh.triangles, n, region);
+  RenderDiagnostics d;
+  d.entries.resize(region.width, region.height, 0);
+  d.exits.resize(region.width, region.height, 0);
+  d.unbalanced.resize(region.width, region.height, 0);
+  d.min_path_mm.resize(region.width, region.height, 0.0);
+  d.max_path_mm.resize(region.width, region.height, 0.0);
+  if (scene.empty()) return d;
+
+  // Sample by sample, single pass per band: sums plus entry and exit counts.
+  const Footprint f = layoutFootprint(scene, n);
+  const SampleDistances distances = sampleDistances(machine, f);
+  const size_t width = static_cast<size_t>(f.width());
+  tbb::parallel_for(size_t{0}, f.bands.size(), [&](size_t b) {
+    const Band& band = f.bands[b];
+    const size_t count = static_cast<size_t>(band.row_end - band.row_begin) * width;
+    std::vector<double> sum(count, 0.0);
+    std::vector<int32_t> entries(count, 0), exits(count, 0);
+    for (uint32_t i : f.bins[b]) {
+      const TriangleSetup& t = scene.triangles[i];
+      accumulateTriangle(t, band, f, sum.data());
+      auto& counter = t.sigma > 0 ? exits : entries;
+      raster::forEachSpan(t, band.row_begin, band.row_end, [&](int line, int k0, int k1) {
+        for (int k = k0; k <= k1; ++k) {
+          const int row = t.by_rows ? line : k, col = t.by_rows ? k : line;
+          ++counter[static_cast<size_t>(row - band.row_begin) * width +
+                    static_cast<size_t>(col - f.col_begin)];
+        }
+      });
+    }
+    for (int v = band.row_begin / n; v < band.row_end / n; ++v) {
+      for (int u = f.col_begin / n; u < f.col_end / n; ++u) {
+        const int x = u - region.x, y = v - region.y;
+        double lo = HUGE_VAL, hi = -HUGE_VAL;
+        for (int j = 0; j < n; ++j)
+          for (int i = 0; i < n; ++i) {
+            const size_t k = static_cast<size_t>(u * n + i - f.col_begin);
+            const size_t s = static_cast<size_t>(v * n + j - band.row_begin) * width + k;
+            const double path = sum[s] * std::sqrt(distances.px2[k] + distances.py2d2(v * n + j));
+            lo = std::min(lo, path);
+            hi = std::max(hi, path);
+            d.entries(x, y) += entries[s];
+            d.exits(x, y) += exits[s];
+            d.unbalanced(x, y) += entries[s] != exits[s] ? 1 : 0;
+          }
+        d.min_path_mm(x, y) = lo;
+        d.max_path_mm(x, y) = hi;
+      }
+    }
+  });
+  return d;
+}
+
+}  // namespace xgauge

@@ -27,6 +27,31 @@ bool sampleRange(double lo, double hi, int k_min, int k_max, int& k0, int& k1) {
   return k0 <= k1;
 }
 
+// Edge crossings along the triangle's scan lines (see forEachSpan).
+void setupEdges(TriangleSetup& t) {
+  const bool rows = t.by_rows;
+  const double line_lo = (rows ? t.ky0 : t.kx0) + 0.5, line_hi = (rows ? t.ky1 : t.kx1) + 0.5;
+  for (int e = 0; e < 3; ++e) {
+    const int f = e == 2 ? 0 : e + 1;
+    EdgeCrossing& c = t.edges[e];
+    const double a = rows ? t.x[e] : t.y[e], b = rows ? t.x[f] : t.y[f];
+    const double a_q = rows ? t.y[e] : t.x[e], b_q = rows ? t.y[f] : t.x[f];
+    if (a_q == b_q) {
+      c = {-HUGE_VAL, HUGE_VAL, 0.0, a_q, true};
+      continue;
+    }
+    const double slope = (b - a) / (b_q - a_q);
+    // Rounding of a + slope (q - a_q) is a few ulps of its terms.
+    const double reach = std::max(std::abs(line_lo - a_q), std::abs(line_hi - a_q));
+    const double tolerance = 1e-12 * (std::abs(a) + std::abs(slope) * reach) + 1e-9;
+    // d det / d(along) is ay - by for rows and bx - ax for columns; the
+    // inside is where the orientation equals sigma.
+    const double growth = rows ? (t.y[e] - t.y[f]) : (t.x[f] - t.x[e]);
+    if ((growth > 0) == (t.sigma > 0)) c = {a - tolerance, HUGE_VAL, slope, a_q, false};
+    else c = {-HUGE_VAL, a + tolerance, slope, a_q, false};
+  }
+}
+
 }  // namespace
 
 SceneSetup setupScene(const Machine& machine, std::span<const Vec3> world_vertices,
@@ -59,11 +84,12 @@ SceneSetup setupScene(const Machine& machine, std::span<const Vec3> world_vertic
   const int rx0 = region.x * samples, rx1 = region.right() * samples - 1;
   const int ry0 = region.y * samples, ry1 = region.bottom() * samples - 1;
 
-  std::vector<TriangleSetup> all(triangles.size());
+  SceneSetup scene;
+  scene.triangles.resize(triangles.size());
   std::vector<uint8_t> keep(triangles.size(), 0);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, triangles.size(), 2048), [&](auto range) {
     for (size_t i = range.begin(); i != range.end(); ++i) {
-      TriangleSetup& t = all[i];
+      TriangleSetup& t = scene.triangles[i];
       double m[3];
       for (int c = 0; c < 3; ++c) {
         const Projected& p = projected[triangles[i][static_cast<size_t>(c)]];
@@ -80,6 +106,7 @@ SceneSetup setupScene(const Machine& machine, std::span<const Vec3> world_vertic
       t.sigma = triangleOrientation(t);
       if (t.sigma == 0) continue;  // seen edge-on: covers no sample
       t.by_rows = (t.ky1 - t.ky0) <= (t.kx1 - t.kx0);
+      setupEdges(t);
       // Affine magnification from the three vertices.
       const double ex1 = t.x[1] - t.x[0], ey1 = t.y[1] - t.y[0];
       const double ex2 = t.x[2] - t.x[0], ey2 = t.y[2] - t.y[0];
@@ -98,19 +125,18 @@ SceneSetup setupScene(const Machine& machine, std::span<const Vec3> world_vertic
     }
   });
 
-  SceneSetup scene;
   scene.kx0 = scene.ky0 = std::numeric_limits<int>::max();
   scene.kx1 = scene.ky1 = std::numeric_limits<int>::min();
-  for (size_t i = 0; i < all.size(); ++i) {
+  for (uint32_t i = 0; i < triangles.size(); ++i) {
     if (!keep[i]) continue;
-    const TriangleSetup& t = all[i];
+    const TriangleSetup& t = scene.triangles[i];
     scene.kx0 = std::min(scene.kx0, t.kx0);
     scene.kx1 = std::max(scene.kx1, t.kx1);
     scene.ky0 = std::min(scene.ky0, t.ky0);
     scene.ky1 = std::max(scene.ky1, t.ky1);
-    scene.triangles.push_back(t);
+    scene.visible.push_back(i);
   }
-  if (scene.triangles.empty()) scene.kx0 = scene.ky0 = 0, scene.kx1 = scene.ky1 = -1;
+  if (scene.visible.empty()) scene.kx0 = scene.ky0 = 0, scene.kx1 = scene.ky1 = -1;
   return scene;
 }
 

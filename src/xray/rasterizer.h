@@ -38,6 +38,20 @@
 
 namespace xgauge::raster {
 
+// One edge seen from the scan lines of its triangle. On the line with fixed
+// coordinate q it bounds the inside from below at
+// lower + slope (q - across) or from above at upper + slope (q - across)
+// (the other bound is -inf or +inf, so spans need no branches). Both bounds
+// include a tolerance a thousand times the rounding error. An edge parallel
+// to the lines bounds the range of lines instead (parallel == true).
+struct EdgeCrossing {
+  double lower;
+  double upper;
+  double slope;
+  double across;
+  bool parallel;
+};
+
 // One triangle, ready to scan.
 struct TriangleSetup {
   double x[3], y[3];  // vertices in sample space
@@ -46,6 +60,7 @@ struct TriangleSetup {
   int sigma;               // +1: the ray leaves the part here; -1: enters
   int kx0, kx1, ky0, ky1;  // candidate samples (inclusive), clipped to the region
   bool by_rows;            // scan rows (else columns)
+  EdgeCrossing edges[3];   // edge i runs from vertex i to vertex i + 1
 
   // m from its two terms gx (qx - x[0]) and gy (qy - y[0]). Their sum is
   // commutative, so a sample gets the same bits whether its triangle is
@@ -57,9 +72,10 @@ struct TriangleSetup {
 };
 
 struct SceneSetup {
-  std::vector<TriangleSetup> triangles;  // those that may cover a sample, mesh order
+  std::vector<TriangleSetup> triangles;  // one per mesh triangle
+  std::vector<uint32_t> visible;         // those that may cover a sample, mesh order
   int kx0 = 0, kx1 = -1, ky0 = 0, ky1 = -1;  // union of their boxes (inclusive)
-  bool empty() const { return triangles.empty(); }
+  bool empty() const { return visible.empty(); }
 };
 
 // Projects the mesh (world coordinates, mm) and prepares its triangles for the
@@ -70,6 +86,27 @@ SceneSetup setupScene(const Machine& machine, std::span<const Vec3> world_vertic
                       std::span<const std::array<uint32_t, 3>> triangles, int samples,
                       const PixelRect& region);
 
+// Columns [first, last] that can hold samples of `t` in sample rows
+// [row_begin, row_end): the triangle clipped to that slab, conservatively.
+inline void columnsInRows(const TriangleSetup& t, int row_begin, int row_end, int& first,
+                          int& last) {
+  const double y0 = row_begin + 0.5, y1 = row_end - 0.5;
+  double lo = HUGE_VAL, hi = -HUGE_VAL;
+  for (int e = 0; e < 3; ++e) {
+    const int f = e == 2 ? 0 : e + 1;
+    if (t.y[e] >= y0 && t.y[e] <= y1) lo = std::min(lo, t.x[e]), hi = std::max(hi, t.x[e]);
+    for (double y : {y0, y1}) {
+      if ((t.y[e] - y) * (t.y[f] - y) < 0) {  // the edge crosses this row
+        const double x = t.x[e] + (y - t.y[e]) * (t.x[f] - t.x[e]) / (t.y[f] - t.y[e]);
+        lo = std::min(lo, x), hi = std::max(hi, x);
+      }
+    }
+  }
+  // One sample of margin covers the rounding of the crossings.
+  first = std::max(t.kx0, static_cast<int>(std::max(std::floor(lo - 0.5) - 1.0, -1e9)));
+  last = std::min(t.kx1, static_cast<int>(std::min(std::ceil(hi - 0.5) + 1.0, 1e9)));
+}
+
 // Calls emit(line, k_lo, k_hi) for every non-empty scan line of `t` whose
 // samples lie in sample rows [row_begin, row_end). For a row scan, line is the
 // sample row and [k_lo, k_hi] the sample columns; for a column scan, line is
@@ -78,56 +115,68 @@ template <typename Emit>
 void forEachSpan(const TriangleSetup& t, int row_begin, int row_end, Emit&& emit) {
   const bool rows = t.by_rows;
   // Lines run along the scan axis; k counts samples along each line.
-  const int line0 = rows ? std::max(t.ky0, row_begin) : t.kx0;
-  const int line1 = rows ? std::min(t.ky1, row_end - 1) : t.kx1;
-  const int k_min = rows ? t.kx0 : std::max(t.ky0, row_begin);
-  const int k_max = rows ? t.kx1 : std::min(t.ky1, row_end - 1);
-  if (line0 > line1 || k_min > k_max) return;
+  int line0 = std::max(t.ky0, row_begin), line1 = std::min(t.ky1, row_end - 1);
+  const int k_min = rows ? t.kx0 : line0;
+  const int k_max = rows ? t.kx1 : line1;
+  if (!rows) columnsInRows(t, row_begin, row_end, line0, line1);
 
-  auto inside = [&](double px, double py) {
+  // Exact test of one sample (px, py).
+  auto sample_inside = [&](double px, double py) {
     for (int e = 0; e < 3; ++e) {
       const int f = e == 2 ? 0 : e + 1;
       if (orientSign(t.x[e], t.y[e], t.x[f], t.y[f], px, py) != t.sigma) return false;
     }
     return true;
   };
-
-  for (int line = line0; line <= line1; ++line) {
-    const double q = line + 0.5;  // the line's fixed coordinate
-    // Conservative floating-point span [lo, hi] along the line.
-    double lo = -HUGE_VAL, hi = HUGE_VAL;
-    bool empty = false;
-    for (int e = 0; e < 3 && !empty; ++e) {
-      const int f = e == 2 ? 0 : e + 1;
-      // (a, b): edge coordinates along the line, (a_q, b_q): across it.
-      const double a = rows ? t.x[e] : t.y[e], b = rows ? t.x[f] : t.y[f];
-      const double a_q = rows ? t.y[e] : t.x[e], b_q = rows ? t.y[f] : t.x[f];
-      if (a_q == b_q) {
-        // Edge parallel to the line: the same side for every sample on it.
-        const double px = rows ? 0.0 : q, py = rows ? q : 0.0;
-        if (orientSign(t.x[e], t.y[e], t.x[f], t.y[f], px, py) != t.sigma) empty = true;
-        continue;
-      }
-      const double offset = (q - a_q) * (b - a) / (b_q - a_q);
-      const double crossing = a + offset;
-      const double tol = 1e-12 * (std::abs(a) + std::abs(offset)) + 1e-9;
-      // d det / d(along): rows: ay - by; columns: bx - ax.
-      const double slope = rows ? (t.y[e] - t.y[f]) : (t.x[f] - t.x[e]);
-      if ((slope > 0) == (t.sigma > 0)) lo = std::max(lo, crossing - tol);
-      else hi = std::min(hi, crossing + tol);
-    }
-    if (empty || !(lo <= hi)) continue;
-    const double k_lo_f = std::ceil(lo - 0.5), k_hi_f = std::floor(hi - 0.5);
-    int k_lo = k_lo_f > k_max ? k_max + 1 : std::max(k_min, static_cast<int>(std::max(k_lo_f, -1e9)));
-    int k_hi = k_hi_f < k_min ? k_min - 1 : std::min(k_max, static_cast<int>(std::min(k_hi_f, 1e9)));
-    if (k_lo > k_hi) continue;
-    // Exact refinement: the true span is an interval within [k_lo, k_hi].
-    auto sample_inside = [&](int k) {
-      return rows ? inside(k + 0.5, q) : inside(q, k + 0.5);
+  // An edge parallel to the lines keeps the lines on one side of it (and the
+  // line through it exactly if the tie-break says so).
+  for (int e = 0; e < 3; ++e) {
+    if (!t.edges[e].parallel) continue;
+    const int f = e == 2 ? 0 : e + 1;
+    const double at = t.edges[e].across;
+    auto line_inside = [&](double q) {
+      return orientSign(t.x[e], t.y[e], t.x[f], t.y[f], rows ? 0.0 : q, rows ? q : 0.0) == t.sigma;
     };
-    while (k_lo <= k_hi && !sample_inside(k_lo)) ++k_lo;
-    while (k_hi >= k_lo && !sample_inside(k_hi)) --k_hi;
-    if (k_lo <= k_hi) emit(line, k_lo, k_hi);
+    const double first_f = std::ceil(at - 0.5);  // first line with q >= at
+    if (first_f > 1e9 || first_f < -1e9) return;  // beyond any detector: no line qualifies
+    const int first = static_cast<int>(first_f);
+    const bool on_line = first + 0.5 == at;
+    if (line_inside(at + 1.0)) line0 = std::max(line0, on_line && !line_inside(at) ? first + 1 : first);
+    else line1 = std::min(line1, on_line && line_inside(at) ? first : first - 1);
+  }
+  if (line0 > line1 || k_min > k_max) return;
+
+  // Candidate spans for a chunk of lines at a time (a loop without branches,
+  // which the compiler vectorizes), then exact refinement of the few
+  // non-empty ones.
+  constexpr int kChunk = 64;
+  double k_lo_f[kChunk], k_hi_f[kChunk];
+  const EdgeCrossing& e0 = t.edges[0];
+  const EdgeCrossing& e1 = t.edges[1];
+  const EdgeCrossing& e2 = t.edges[2];
+  for (int base = line0; base <= line1; base += kChunk) {
+    const int count = std::min(kChunk, line1 - base + 1);
+    for (int j = 0; j < count; ++j) {
+      const double q = (base + j) + 0.5;
+      const double d0 = e0.slope * (q - e0.across), d1 = e1.slope * (q - e1.across),
+                   d2 = e2.slope * (q - e2.across);
+      const double lo = std::max(std::max(e0.lower + d0, e1.lower + d1), e2.lower + d2);
+      const double hi = std::min(std::min(e0.upper + d0, e1.upper + d1), e2.upper + d2);
+      k_lo_f[j] = std::ceil(lo - 0.5);
+      k_hi_f[j] = std::floor(hi - 0.5);
+    }
+    for (int j = 0; j < count; ++j) {
+      if (!(k_lo_f[j] <= k_hi_f[j]) || k_lo_f[j] > k_max || k_hi_f[j] < k_min) continue;
+      const int line = base + j;
+      const double q = line + 0.5;
+      int k_lo = std::max(k_min, static_cast<int>(std::max(k_lo_f[j], -1e9)));
+      int k_hi = std::min(k_max, static_cast<int>(std::min(k_hi_f[j], 1e9)));
+      // The true span is an interval within [k_lo, k_hi].
+      auto inside = [&](int k) { return rows ? sample_inside(k + 0.5, q) : sample_inside(q, k + 0.5); };
+      while (k_lo <= k_hi && !inside(k_lo)) ++k_lo;
+      while (k_hi >= k_lo && !inside(k_hi)) --k_hi;
+      if (k_lo <= k_hi) emit(line, k_lo, k_hi);
+    }
   }
 }
 

@@ -57,7 +57,7 @@ Footprint layoutFootprint(const SceneSetup& scene, int n) {
   // Bin the triangles by band, keeping mesh order within each bin.
   f.bins.resize(f.bands.size());
   const auto band_of = [&](int row) { return static_cast<size_t>((row - row_begin) / band_rows); };
-  for (uint32_t i = 0; i < scene.triangles.size(); ++i) {
+  for (uint32_t i : scene.visible) {
     const TriangleSetup& t = scene.triangles[i];
     for (size_t b = band_of(t.ky0); b <= band_of(t.ky1); ++b) f.bins[b].push_back(i);
   }

@@ -54,9 +54,9 @@ void setupEdges(TriangleSetup& t) {
 
 }  // namespace
 
-SceneSetup setupScene(const Machine& machine, std::span<const Vec3> world_vertices,
-                      std::span<const std::array<uint32_t, 3>> triangles, int samples,
-                      const PixelRect& region) {
+void setupScene(const Machine& machine, std::span<const Vec3> world_vertices,
+                std::span<const std::array<uint32_t, 3>> triangles, int samples,
+                const PixelRect& region, SceneSetup& scene) {
   const double d = machine.source_detector_distance_mm;
   const double n = samples;
 
@@ -84,8 +84,8 @@ SceneSetup setupScene(const Machine& machine, std::span<const Vec3> world_vertic
   const int rx0 = region.x * samples, rx1 = region.right() * samples - 1;
   const int ry0 = region.y * samples, ry1 = region.bottom() * samples - 1;
 
-  SceneSetup scene;
   scene.triangles.resize(triangles.size());
+  scene.visible.clear();
   std::vector<uint8_t> keep(triangles.size(), 0);
   tbb::parallel_for(tbb::blocked_range<size_t>(0, triangles.size(), 2048), [&](auto range) {
     for (size_t i = range.begin(); i != range.end(); ++i) {
@@ -137,7 +137,6 @@ SceneSetup setupScene(const Machine& machine, std::span<const Vec3> world_vertic
     scene.visible.push_back(i);
   }
   if (scene.visible.empty()) scene.kx0 = scene.ky0 = 0, scene.kx1 = scene.ky1 = -1;
-  return scene;
 }
 
 }  // namespace xgauge::raster

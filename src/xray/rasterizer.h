@@ -80,11 +80,12 @@ struct SceneSetup {
 
 // Projects the mesh (world coordinates, mm) and prepares its triangles for the
 // sample grid of `samples` x `samples` per pixel, restricted to `region`
-// (pixels). Throws Error if a vertex is not strictly between the detector
-// plane and the source plane (0 <= z < D).
-SceneSetup setupScene(const Machine& machine, std::span<const Vec3> world_vertices,
-                      std::span<const std::array<uint32_t, 3>> triangles, int samples,
-                      const PixelRect& region);
+// (pixels), into `scene` (whose memory is reused from call to call). Throws
+// Error if a vertex is not between the detector plane and the source plane
+// (0 <= z < D).
+void setupScene(const Machine& machine, std::span<const Vec3> world_vertices,
+                std::span<const std::array<uint32_t, 3>> triangles, int samples,
+                const PixelRect& region, SceneSetup& scene);
 
 // Columns [first, last] that can hold samples of `t` in sample rows
 // [row_begin, row_end): the triangle clipped to that slab, conservatively.
@@ -151,9 +152,11 @@ void forEachSpan(const TriangleSetup& t, int row_begin, int row_end, Emit&& emit
   // non-empty ones.
   constexpr int kChunk = 64;
   double k_lo_f[kChunk], k_hi_f[kChunk];
+  int candidates[kChunk];
   const EdgeCrossing& e0 = t.edges[0];
   const EdgeCrossing& e1 = t.edges[1];
   const EdgeCrossing& e2 = t.edges[2];
+  const double k_min_f = k_min, k_max_f = k_max;
   for (int base = line0; base <= line1; base += kChunk) {
     const int count = std::min(kChunk, line1 - base + 1);
     for (int j = 0; j < count; ++j) {
@@ -162,15 +165,21 @@ void forEachSpan(const TriangleSetup& t, int row_begin, int row_end, Emit&& emit
                    d2 = e2.slope * (q - e2.across);
       const double lo = std::max(std::max(e0.lower + d0, e1.lower + d1), e2.lower + d2);
       const double hi = std::min(std::min(e0.upper + d0, e1.upper + d1), e2.upper + d2);
-      k_lo_f[j] = std::ceil(lo - 0.5);
-      k_hi_f[j] = std::floor(hi - 0.5);
+      k_lo_f[j] = std::max(std::ceil(lo - 0.5), k_min_f);
+      k_hi_f[j] = std::min(std::floor(hi - 0.5), k_max_f);
     }
+    // Branch-free compaction: most lines of a sliver hold no sample.
+    int found = 0;
     for (int j = 0; j < count; ++j) {
-      if (!(k_lo_f[j] <= k_hi_f[j]) || k_lo_f[j] > k_max || k_hi_f[j] < k_min) continue;
+      candidates[found] = j;
+      found += k_lo_f[j] <= k_hi_f[j];
+    }
+    for (int c = 0; c < found; ++c) {
+      const int j = candidates[c];
       const int line = base + j;
       const double q = line + 0.5;
-      int k_lo = std::max(k_min, static_cast<int>(std::max(k_lo_f[j], -1e9)));
-      int k_hi = std::min(k_max, static_cast<int>(std::min(k_hi_f[j], 1e9)));
+      int k_lo = static_cast<int>(k_lo_f[j]);
+      int k_hi = static_cast<int>(k_hi_f[j]);
       // The true span is an interval within [k_lo, k_hi].
       auto inside = [&](int k) { return rows ? sample_inside(k + 0.5, q) : sample_inside(q, k + 0.5); };
       while (k_lo <= k_hi && !inside(k_lo)) ++k_lo;

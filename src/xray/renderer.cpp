@@ -116,8 +116,12 @@ void renderPixels(const Machine& machine, const WorldMesh& mesh, const RenderOpt
                   double background, Shade shade, ImageT<T>& out) {
   const PixelRect region = resolveRegion(machine, options);
   const int n = options.samples_per_axis;
-  const SceneSetup scene =
-      raster::setupScene(machine, mesh.vertices_mm, mesh.triangles, n, region);
+  // Per calling thread, reused: an optimiser renders thousands of times. The
+  // reference matters: worker threads must see this thread's scene, not
+  // their own thread_local instance.
+  thread_local SceneSetup scratch;
+  SceneSetup& scene = scratch;
+  raster::setupScene(machine, mesh.vertices_mm, mesh.triangles, n, region, scene);
   if (out.width() != region.width || out.height() != region.height)
     out.resize(region.width, region.height);
 
@@ -201,8 +205,12 @@ RenderDiagnostics renderDiagnostics(const Machine& machine, const WorldMesh& mes
                                     const RenderOptions& options) {
   const PixelRect region = resolveRegion(machine, options);
   const int n = options.samples_per_axis;
-  const SceneSetup scene =
-      raster::setupScene(machine, mesh.vertices_mm, mesh.triangles, n, region);
+  // Per calling thread, reused: an optimiser renders thousands of times. The
+  // reference matters: worker threads must see this thread's scene, not
+  // their own thread_local instance.
+  thread_local SceneSetup scratch;
+  SceneSetup& scene = scratch;
+  raster::setupScene(machine, mesh.vertices_mm, mesh.triangles, n, region, scene);
   RenderDiagnostics d;
   d.entries.resize(region.width, region.height, 0);
   d.exits.resize(region.width, region.height, 0);

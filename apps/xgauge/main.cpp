@@ -17,6 +17,7 @@ int main(int argc, char** argv) {
   CLI::App app{"xgauge: dimensional measurement of parts from a few X-ray radiographs"};
   app.set_version_flag("--version", "xgauge 0.1.0");
   app.require_subcommand(1);
+  app.fallthrough();  // global flags (-q, -j) may follow the subcommand too
   bool quiet = false, verbose = false;
   int threads = 0;
   app.add_flag("-q,--quiet", quiet, "Only warnings and errors; no progress bars");

@@ -1,6 +1,7 @@
 #include "xgauge/core/config.h"
 
 #include <algorithm>
+#include <map>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -13,6 +14,7 @@ struct ConfigNode::Document {
   std::set<std::string> read;     // pointers whose value was looked up
   std::set<std::string> entered;  // pointers of objects whose keys were looked up
   std::set<std::string> whole;    // pointers read as a whole subtree
+  std::map<std::string, std::set<std::string>> asked;  // keys looked up per object, present or not
 };
 
 namespace {
@@ -101,6 +103,7 @@ void ConfigNode::markEntered() const { doc_->entered.insert(path_); }
 bool ConfigNode::has(std::string_view key) const {
   if (!json_->is_object()) fail("expected an object");
   markEntered();
+  doc_->asked[path_].emplace(key);
   const bool present = json_->contains(key);
   if (present) doc_->read.insert(path_ + "/" + escapeKey(key));
   return present;
@@ -165,9 +168,9 @@ void ConfigNode::finish() const {
   if (doc_->whole.count(path_)) return;
   if (json_->is_object()) {
     if (!doc_->entered.count(path_)) return;
-    std::vector<std::string> known;
-    for (const auto& item : json_->items())
-      if (doc_->read.count(path_ + "/" + escapeKey(item.key()))) known.push_back(item.key());
+    const auto asked = doc_->asked.find(path_);
+    const std::set<std::string> known =
+        asked == doc_->asked.end() ? std::set<std::string>{} : asked->second;
     for (const auto& item : json_->items()) {
       const std::string child = path_ + "/" + escapeKey(item.key());
       if (doc_->read.count(child)) {

@@ -237,7 +237,7 @@ TEST(PartModel, MissingKey) {
 
 TEST(PartModel, MisspelledKey) {
   expectLoadError(replaced(kNotchedBar, R"("thesis": "θ1")", R"("theses": "θ1")"),
-                  "unknown key 'theses'", "/dimensions/0/theses");
+                  "unknown key 'theses'; did you mean 'thesis'?", "/dimensions/0/theses");
   expectLoadError(replaced(kNotchedBar, R"("from": "0")", R"("form": "0")"), "missing key 'from'",
                   "/shape");
 }

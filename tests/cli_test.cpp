@@ -1,0 +1,180 @@
+// `xgauge render` end to end: outputs that can be checked in closed form, and
+// bad input of every kind giving a clear message, a non-zero exit status and
+// no output file.
+#include "xgauge/image/tiff.h"
+
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+namespace xgauge {
+namespace {
+
+namespace fs = std::filesystem;
+const std::string kRoot = XGAUGE_SOURCE_DIR;
+
+struct CommandResult {
+  int status;
+  std::string output;  // stdout and stderr
+};
+
+CommandResult run(const std::string& arguments) {
+  const std::string command = std::string(XGAUGE_EXECUTABLE) + " " + arguments + " 2>&1";
+  FILE* pipe = ::popen(command.c_str(), "r");
+  EXPECT_NE(pipe, nullptr);
+  CommandResult result{0, {}};
+  std::array<char, 4096> buffer{};
+  while (fgets(buffer.data(), buffer.size(), pipe) != nullptr) result.output += buffer.data();
+  const int status = ::pclose(pipe);
+  result.status = WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+  return result;
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("xgauge_cli_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+
+  std::string write(const std::string& name, const std::string& text) {
+    const fs::path path = dir_ / name;
+    std::ofstream(path) << text;
+    return path.string();
+  }
+  std::string out(const std::string& name) const { return (dir_ / name).string(); }
+
+  // A render command with every input valid; tests replace one piece.
+  std::string renderArgs(const std::string& part, const std::string& machine,
+                         const std::string& extra) const {
+    return "render " + part + " --machine " + machine + " --material " + kRoot +
+           "/examples/aluminium_60kev.json --rotation-deg 0 0 0 --translation-mm 0 0 400 -o " +
+           out("out.tif") + " " + extra;
+  }
+
+  // Fails the test unless the run failed with `message` and wrote nothing.
+  void expectCleanFailure(const CommandResult& r, const std::string& message) {
+    EXPECT_NE(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos)
+        << "expected '" << message << "' in:\n" << r.output;
+    EXPECT_TRUE(fs::is_empty(dir_) || !fs::exists(out("out.tif"))) << r.output;
+    for (const auto& entry : fs::directory_iterator(dir_))
+      EXPECT_EQ(entry.path().extension(), ".json") << "left behind: " << entry.path();
+  }
+
+  fs::path dir_;
+};
+
+const char* kMachine = R"({"source_detector_distance_mm": 1000,
+  "detector": {"columns": 128, "rows": 96, "pixel_pitch_mm": [0.5, 0.5]}})";
+
+TEST_F(Cli, PathLengthOfACuboidFacingTheSource) {
+  const std::string machine = write("machine.json", kMachine);
+  const CommandResult r = run("render " + kRoot + "/parts/cuboid.json --machine " + machine +
+                    " --quantity path --rotation-deg 0 0 0 --translation-mm 0 0 400"
+                    " --set size_z=12.5 -o " + out("path.tif") + " --png " + out("path.png") + " -q");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Image path = readTiff(out("path.tif"));
+  ASSERT_EQ(path.width(), 128);
+  ASSERT_EQ(path.height(), 96);
+  // The central ray runs along z: path = size_z exactly (float TIFF).
+  const double centre = static_cast<double>(path(64, 48));
+  EXPECT_NEAR(centre, 12.5 * std::hypot(0.25, 0.25, 1000.0) / 1000.0, 1e-5);
+  EXPECT_EQ(path(0, 0), 0.0f);
+  EXPECT_TRUE(fs::exists(out("path.png")));
+}
+
+TEST_F(Cli, Intensity16BitIsScaledTransmission) {
+  const std::string machine = write("machine.json", kMachine);
+  const CommandResult r = run(renderArgs(kRoot + "/parts/cuboid.json", machine, "--format u16 -q"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Image image = readTiff(out("out.tif"));
+  EXPECT_EQ(image(0, 0), 65535.0f);  // open beam
+  EXPECT_LT(image(64, 48), 65535.0f * 0.6f);
+  EXPECT_GT(image(64, 48), 0.0f);
+}
+
+TEST_F(Cli, UnknownDimension) {
+  const std::string machine = write("machine.json", kMachine);
+  expectCleanFailure(run(renderArgs(kRoot + "/parts/cuboid.json", machine, "--set widht=3")),
+                     "unknown dimension 'widht'");
+}
+
+TEST_F(Cli, ValueOutOfBounds) {
+  const std::string machine = write("machine.json", kMachine);
+  expectCleanFailure(run(renderArgs(kRoot + "/parts/cuboid.json", machine, "--set size_x=1e6")),
+                     "size_x");
+}
+
+TEST_F(Cli, NotANumber) {
+  const std::string machine = write("machine.json", kMachine);
+  expectCleanFailure(run(renderArgs(kRoot + "/parts/cuboid.json", machine, "--set size_x=nan")),
+                     "not a finite number");
+}
+
+TEST_F(Cli, MissingPartFile) {
+  const std::string machine = write("machine.json", kMachine);
+  expectCleanFailure(run(renderArgs(out("nope.json"), machine, "")), "nope.json");
+}
+
+TEST_F(Cli, MalformedMachineJson) {
+  const std::string machine = write("machine.json", "{\n  \"source_detector_distance_mm\": 1000,\n  \"detector\": {\n}");
+  expectCleanFailure(run(renderArgs(kRoot + "/parts/cuboid.json", machine, "")),
+                     "machine.json:4");
+}
+
+TEST_F(Cli, MisspelledMachineKey) {
+  const std::string machine = write("machine.json", R"({"source_detector_distance_mm": 1000,
+    "detector": {"columns": 128, "rows": 96, "pixel_pitch_mm": [0.5, 0.5], "principle_point_px": [1, 2]}})");
+  expectCleanFailure(run(renderArgs(kRoot + "/parts/cuboid.json", machine, "")),
+                     "unknown key 'principle_point_px'");
+}
+
+TEST_F(Cli, OpenMesh) {
+  const std::string machine = write("machine.json", kMachine);
+  const std::string part = write("open.json", R"({
+    "description": "a tetrahedron missing one face",
+    "dimensions": [{"name": "s", "nominal": 10, "min": 1, "max": 20, "unit": "mm"}],
+    "shape": {"type": "mesh",
+      "vertices": [["0","0","0"], ["s","0","0"], ["0","s","0"], ["0","0","s"]],
+      "triangles": [[0,2,1], [0,1,3], [1,2,3]]}})");
+  expectCleanFailure(run(renderArgs(part, machine, "")), "open.json");
+}
+
+TEST_F(Cli, PartBehindTheSource) {
+  const std::string machine = write("machine.json", kMachine);
+  const CommandResult r = run("render " + kRoot + "/parts/cuboid.json --machine " + machine +
+                    " --quantity path --rotation-deg 0 0 0 --translation-mm 0 0 1200 -o " + out("out.tif"));
+  expectCleanFailure(r, "check the pose");
+}
+
+TEST_F(Cli, RegionOutsideTheDetector) {
+  const std::string machine = write("machine.json", kMachine);
+  expectCleanFailure(run(renderArgs(kRoot + "/parts/cuboid.json", machine, "--region 100 0 64 64")),
+                     "outside the 128x96 detector");
+}
+
+TEST_F(Cli, MissingMaterialForIntensity) {
+  const std::string machine = write("machine.json", kMachine);
+  const CommandResult r = run("render " + kRoot + "/parts/cuboid.json --machine " + machine +
+                    " --rotation-deg 0 0 0 --translation-mm 0 0 400 -o " + out("out.tif"));
+  expectCleanFailure(r, "--material");
+}
+
+TEST_F(Cli, OutputFolderMissing) {
+  const std::string machine = write("machine.json", kMachine);
+  const CommandResult r = run("render " + kRoot + "/parts/cuboid.json --machine " + machine +
+                    " --quantity path --rotation-deg 0 0 0 --translation-mm 0 0 400 -o " +
+                    out("no/such/folder/out.tif"));
+  expectCleanFailure(r, "does not exist");
+}
+
+}  // namespace
+}  // namespace xgauge

@@ -2,6 +2,7 @@
 // The CLI only parses arguments and calls the library; bad input surfaces
 // here as xgauge::Error, printed once, with a non-zero exit status.
 #include "render_command.h"
+#include "simulate_command.h"
 
 #include "xgauge/core/error.h"
 #include "xgauge/core/log.h"
@@ -26,6 +27,8 @@ int main(int argc, char** argv) {
 
   xgauge::cli::RenderArguments render;
   xgauge::cli::addRenderCommand(app, render);
+  xgauge::cli::SimulateArguments simulate;
+  xgauge::cli::addSimulateCommand(app, simulate);
 
   try {
     app.parse(argc, argv);
@@ -39,6 +42,7 @@ int main(int argc, char** argv) {
   try {
     xgauge::ThreadLimit limit(threads);
     if (app.got_subcommand("render")) xgauge::cli::runRender(render);
+    if (app.got_subcommand("simulate")) xgauge::cli::runSimulate(simulate);
   } catch (const xgauge::Error& e) {
     std::fprintf(stderr, "xgauge: error: %s\n", e.what());
     return 1;

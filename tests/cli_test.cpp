@@ -178,3 +178,46 @@ TEST_F(Cli, OutputFolderMissing) {
 
 }  // namespace
 }  // namespace xgauge
+
+namespace xgauge {
+namespace {
+
+TEST_F(Cli, NormalizeFlatFieldAndWhiteRegion) {
+  // raw = dark + gain * 0.5 * open beam, with one dead pixel.
+  Image dark(32, 24, 4000.0f), flat(32, 24, 0.0f), raw(32, 24, 0.0f);
+  for (int y = 0; y < 24; ++y)
+    for (int x = 0; x < 32; ++x) {
+      const float gain = 1.0f + 0.01f * static_cast<float>(x);
+      flat(x, y) = 4000.0f + 40000.0f * gain;
+      raw(x, y) = 4000.0f + 40000.0f * gain * (x < 16 ? 1.0f : 0.5f);
+    }
+  flat(20, 10) = dark(20, 10);
+  writeTiff(out("dark.tif"), dark, TiffFormat::kFloat32);
+  writeTiff(out("flat.tif"), flat, TiffFormat::kFloat32);
+  writeTiff(out("raw.tif"), raw, TiffFormat::kFloat32);
+  const CommandResult r = run("normalize " + out("raw.tif") + " --dark " + out("dark.tif") +
+                              " --flat " + out("flat.tif") + " --white 0 0 8 8 -o " + out("n.tif"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("1 bad pixels repaired"), std::string::npos) << r.output;
+  const Image n = readTiff(out("n.tif"));
+  EXPECT_FLOAT_EQ(n(3, 3), 1.0f);
+  EXPECT_NEAR(n(25, 5), 0.5f, 1e-6);
+  EXPECT_NEAR(n(20, 10), 0.5f, 1e-6);  // the dead pixel, repaired
+}
+
+TEST_F(Cli, NormalizeRejectsMismatchedFrames) {
+  writeTiff(out("raw.tif"), Image(32, 24, 1.0f), TiffFormat::kFloat32);
+  writeTiff(out("dark.tif"), Image(16, 24, 0.0f), TiffFormat::kFloat32);
+  writeTiff(out("flat.tif"), Image(32, 24, 2.0f), TiffFormat::kFloat32);
+  const CommandResult r = run("normalize " + out("raw.tif") + " --dark " + out("dark.tif") +
+                              " --flat " + out("flat.tif") + " -o " + out("n.tif"));
+  EXPECT_NE(r.status, 0);
+  EXPECT_NE(r.output.find("16x24"), std::string::npos) << r.output;
+  EXPECT_FALSE(fs::exists(out("n.tif")));
+  const CommandResult none = run("normalize " + out("raw.tif") + " -o " + out("n.tif"));
+  EXPECT_NE(none.status, 0);
+  EXPECT_FALSE(fs::exists(out("n.tif")));
+}
+
+}  // namespace
+}  // namespace xgauge

@@ -1,6 +1,7 @@
 // xgauge: measure parts from a few X-ray radiographs.
 // The CLI only parses arguments and calls the library; bad input surfaces
 // here as xgauge::Error, printed once, with a non-zero exit status.
+#include "normalize_command.h"
 #include "render_command.h"
 #include "simulate_command.h"
 
@@ -27,6 +28,8 @@ int main(int argc, char** argv) {
 
   xgauge::cli::RenderArguments render;
   xgauge::cli::addRenderCommand(app, render);
+  xgauge::cli::NormalizeArguments normalize;
+  xgauge::cli::addNormalizeCommand(app, normalize);
   xgauge::cli::SimulateArguments simulate;
   xgauge::cli::addSimulateCommand(app, simulate);
 
@@ -43,6 +46,7 @@ int main(int argc, char** argv) {
     xgauge::ThreadLimit limit(threads);
     if (app.got_subcommand("render")) xgauge::cli::runRender(render);
     if (app.got_subcommand("simulate")) xgauge::cli::runSimulate(simulate);
+    if (app.got_subcommand("normalize")) xgauge::cli::runNormalize(normalize);
   } catch (const xgauge::Error& e) {
     std::fprintf(stderr, "xgauge: error: %s\n", e.what());
     return 1;

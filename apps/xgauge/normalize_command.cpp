@@ -50,9 +50,11 @@ void runNormalize(const NormalizeArguments& args) {
     // The spread of the open beam, before the clamp hides its upper half.
     const double mean = meanOf(image, white);
     const Image region = image.crop(white);
-    spdlog::info("white region: mean {:.6g}; normalized 0.1 / 50 / 99.9 percentiles {:.4f} / {:.4f} / {:.4f} (before clamping)",
-                 mean, percentileOf(region, 0.1) / mean, percentileOf(region, 50.0) / mean,
-                 percentileOf(region, 99.9) / mean);
+    spdlog::info("white region: mean {:.6g}; normalized min / 0.1 / 50 / 99.9 % / max: "
+                 "{:.4f} / {:.4f} / {:.4f} / {:.4f} / {:.4f} (before clamping)",
+                 mean, percentileOf(region, 0.0) / mean, percentileOf(region, 0.1) / mean,
+                 percentileOf(region, 50.0) / mean, percentileOf(region, 99.9) / mean,
+                 percentileOf(region, 100.0) / mean);
     image = normalizeByWhiteRegion(image, white);
   }
   writeTiff(args.output, image, TiffFormat::kFloat32);

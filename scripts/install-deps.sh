@@ -12,6 +12,7 @@ packages=(
   libnlopt-cxx-dev     # NLopt with the C++ interface
   nlohmann-json3-dev   # JSON
   libmuparser-dev      # dimension expressions in part models
+  libssl-dev           # SHA-256 of input files (libcrypto)
   libcli11-dev         # command line parsing
   libfmt-dev libspdlog-dev
   libstb-dev           # PNG previews (stb_image_write)

@@ -1,9 +1,11 @@
 // xgauge: measure parts from a few X-ray radiographs.
 // The CLI only parses arguments and calls the library; bad input surfaces
 // here as xgauge::Error, printed once, with a non-zero exit status.
+#include "measure_command.h"
 #include "normalize_command.h"
 #include "render_command.h"
 #include "simulate_command.h"
+#include "study_command.h"
 
 #include "xgauge/core/error.h"
 #include "xgauge/core/log.h"
@@ -30,6 +32,12 @@ int main(int argc, char** argv) {
   xgauge::cli::addRenderCommand(app, render);
   xgauge::cli::NormalizeArguments normalize;
   xgauge::cli::addNormalizeCommand(app, normalize);
+  xgauge::cli::MeasureArguments measure;
+  xgauge::cli::addMeasureCommand(app, measure);
+  xgauge::cli::MaterialArguments material;
+  xgauge::cli::addMaterialCommand(app, material);
+  xgauge::cli::StudyArguments study;
+  xgauge::cli::addStudyCommand(app, study);
   xgauge::cli::SimulateArguments simulate;
   xgauge::cli::addSimulateCommand(app, simulate);
 
@@ -47,6 +55,9 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("render")) xgauge::cli::runRender(render);
     if (app.got_subcommand("simulate")) xgauge::cli::runSimulate(simulate);
     if (app.got_subcommand("normalize")) xgauge::cli::runNormalize(normalize);
+    if (app.got_subcommand("measure")) xgauge::cli::runMeasure(measure);
+    if (app.got_subcommand("material")) xgauge::cli::runMaterial(material);
+    if (app.got_subcommand("study")) xgauge::cli::runStudyCommand(study);
   } catch (const xgauge::Error& e) {
     std::fprintf(stderr, "xgauge: error: %s\n", e.what());
     return 1;

@@ -220,7 +220,7 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
       {"beam", beam.toJson()},
       {"material", {{"compound", material_layer.compound}, {"density_g_cm3", material_layer.density_g_cm3}}},
       {"detector", acquisition.noise.toJson()},
-      {"part", {{"model", recipe.part_file.string()}, {"dimensions", dims}}},
+      {"part", {{"model", std::filesystem::weakly_canonical(recipe.part_file).string()}, {"dimensions", dims}}},
       {"white_region", {white.x, white.y, white.width, white.height}},
       {"dark", "dark.tif"},
       {"flat", "flat.tif"},

@@ -4,6 +4,7 @@
 
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
+#include <tbb/task_arena.h>
 
 namespace xgauge {
 
@@ -109,11 +110,25 @@ void accumulateTriangle(const TriangleSetup& t, const Band& band, const Footprin
   });
 }
 
-// Renders value(path_mm) averaged over each pixel's samples into `out`
-// (resized to the region); `background` where the part's footprint is not.
+// (`out` is resized to the region; `background` where the part's footprint is not.)
+template <typename T, typename Shade>
+void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
+                          double background, Shade shade, ImageT<T>& out);
+
+// Renders value(path_mm) averaged over each pixel's samples into `out`.
+// Isolated: while this thread waits inside its parallel loops it must not pick
+// up an unrelated render (say, another measurement of a study) that would
+// reuse its thread_local scene.
 template <typename T, typename Shade>
 void renderPixels(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
                   double background, Shade shade, ImageT<T>& out) {
+  tbb::this_task_arena::isolate(
+      [&] { renderPixelsIsolated(machine, mesh, options, background, shade, out); });
+}
+
+template <typename T, typename Shade>
+void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
+                          double background, Shade shade, ImageT<T>& out) {
   const PixelRect region = resolveRegion(machine, options);
   const int n = options.samples_per_axis;
   // Per calling thread, reused: an optimiser renders thousands of times. The
@@ -177,6 +192,9 @@ void renderPixels(const Machine& machine, const WorldMesh& mesh, const RenderOpt
 
 }  // namespace
 
+RenderDiagnostics renderDiagnosticsIsolated(const Machine& machine, const WorldMesh& mesh,
+                                            const RenderOptions& options);
+
 void poseVertices(const Pose& pose, std::span<const Vec3> part_vertices,
                   std::vector<Vec3>& world_vertices) {
   world_vertices.resize(part_vertices.size());
@@ -203,6 +221,13 @@ void renderIntensity(const Machine& machine, const WorldMesh& mesh,
 
 RenderDiagnostics renderDiagnostics(const Machine& machine, const WorldMesh& mesh,
                                     const RenderOptions& options) {
+  RenderDiagnostics d;
+  tbb::this_task_arena::isolate([&] { d = renderDiagnosticsIsolated(machine, mesh, options); });
+  return d;
+}
+
+RenderDiagnostics renderDiagnosticsIsolated(const Machine& machine, const WorldMesh& mesh,
+                                            const RenderOptions& options) {
   const PixelRect region = resolveRegion(machine, options);
   const int n = options.samples_per_axis;
   // Per calling thread, reused: an optimiser renders thousands of times. The

@@ -1,0 +1,28 @@
+// `xgauge measure` and `xgauge material`: dimensions from radiographs, and a
+// material from a virtual lab's transmission table.
+#pragma once
+
+#include <CLI/CLI.hpp>
+
+#include <string>
+
+namespace xgauge::cli {
+
+struct MeasureArguments {
+  std::string job;
+  std::string output;
+  std::string truth;  // optional truth.json: print errors against it
+};
+
+struct MaterialArguments {
+  std::string truth;
+  int terms = 3;
+  std::string output;
+};
+
+void addMeasureCommand(CLI::App& app, MeasureArguments& args);
+void runMeasure(const MeasureArguments& args);
+void addMaterialCommand(CLI::App& app, MaterialArguments& args);
+void runMaterial(const MaterialArguments& args);
+
+}  // namespace xgauge::cli

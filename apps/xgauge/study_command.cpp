@@ -1,0 +1,36 @@
+#include "study_command.h"
+
+#include "xgauge/measure/study.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+
+namespace xgauge::cli {
+
+void addStudyCommand(CLI::App& app, StudyArguments& args) {
+  CLI::App* cmd = app.add_subcommand(
+      "study", "Measure every combination of shots of a simulated dataset; tabulate the errors");
+  cmd->add_option("dataset", args.dataset, "Dataset folder with truth.json (xgauge simulate)")->required();
+  cmd->add_option("-s,--settings", args.settings, "Study settings: a job without radiographs (JSON)")->required();
+  cmd->add_option("-c,--combinations", args.combinations, "pairs or pairs+rotated")
+      ->check(CLI::IsMember({"pairs", "pairs+rotated"}));
+  cmd->add_option("--limit", args.limit, "Only the first N runs (0 = all)")->check(CLI::NonNegativeNumber);
+  cmd->add_flag("--images", args.images, "Also write each run's simulated and difference images");
+  cmd->add_option("-o,--output", args.output, "Output folder (resumes a study already there)")->required();
+}
+
+void runStudyCommand(const StudyArguments& args) {
+  StudyOptions options;
+  options.dataset = args.dataset;
+  options.settings = args.settings;
+  options.combinations = args.combinations;
+  options.limit = args.limit;
+  options.output = args.output;
+  options.images = args.images;
+  const StudySummary summary = runStudy(options);
+  std::fputs(summary.table().c_str(), stdout);
+  spdlog::info("wrote {}/study.csv and study.json", args.output);
+}
+
+}  // namespace xgauge::cli

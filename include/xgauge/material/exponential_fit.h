@@ -1,0 +1,76 @@
+// Fitting the exponential-sum material model (exponential_sum.h) to a
+// measured transmission curve T(x), e.g. a wedge's intensity table (thesis
+// 3.4, calibration (a)):
+//
+//   min over a, mu   sum_i w_i^2 (sum_k a_k exp(-mu_k x_i) - T_i)^2
+//   subject to       a_k >= 0,  sum_k a_k = 1,  mu_k >= 0.
+//
+// Method: variable projection. For fixed mu the model is linear in a, and the
+// equality-constrained non-negative least-squares problem in a is solved
+// exactly (the full set first; if that has a negative weight, every support
+// set is tried and the best feasible one kept). The projected residual is then
+// a function of mu alone, minimised over log(mu) by BOBYQA (NLopt) from
+// several deterministic starting points spread geometrically over the decay
+// rates seen in the data, and once more from the best point found. The same
+// inputs always give the same result.
+//
+// Terms whose optimal weight is exactly zero are dropped, so the result may
+// have fewer terms than asked for (it then fits as well as any M-term model
+// with those mu). Terms are returned sorted by increasing mu.
+#pragma once
+
+#include "xgauge/material/exponential_sum.h"
+
+#include <span>
+
+namespace xgauge {
+
+struct ExponentialFitOptions {
+  enum class Weighting {
+    // w_i = 1: least squares in transmission.
+    kUniform,
+    // w_i = 1 / T_i: least squares in relative transmission error. A
+    // transmission error dI at path x moves the path length that a pixel
+    // implies by dI / |I'(x)| ~ dI / (mu_eff T), so weighting by 1 / T keeps
+    // the path-length error (what sets the measured dimensions) even across
+    // a radiograph whose transmission spans 1 .. 0.05; uniform weighting lets
+    // the relative error at T = 0.05 grow twenty-fold.
+    kRelative,
+  };
+  Weighting weighting = Weighting::kRelative;
+
+  // Budget of objective evaluations for each local search (each start and
+  // the final polish). Must be >= 100.
+  int max_evaluations_per_start = 3000;
+
+  // Throws Error on an invalid field.
+  void validate() const;
+};
+
+// How well the result fits the data; residuals r_i = I(x_i) - T_i.
+struct ExponentialFitReport {
+  double rms_residual = 0.0;           // sqrt(mean r_i^2)
+  double max_abs_residual = 0.0;       // max |r_i|
+  double max_relative_residual = 0.0;  // max |r_i| / T_i
+  int terms_used = 0;                  // terms in the result (<= terms asked for)
+  int evaluations = 0;                 // objective evaluations over all starts
+  int starts = 0;                      // local searches run (including the polish)
+};
+
+// Fits `terms` (1 to 8) exponentials to T(x). path_mm must be finite, >= 0
+// and strictly increasing; transmission must be finite and in (0, 1 + 1e-9];
+// both the same size, with at least max(2, 2 * terms - 1) points (the free
+// parameters). Throws Error naming the offending input otherwise. `report`,
+// if given, receives the residuals of the returned model.
+ExponentialSum fitExponentialSum(std::span<const double> path_mm,
+                                 std::span<const double> transmission, int terms,
+                                 const ExponentialFitOptions& options = {},
+                                 ExponentialFitReport* report = nullptr);
+
+// Residuals of any model against a curve (fields rms, max abs and max
+// relative; the rest left 0). Same input checks as fitExponentialSum.
+ExponentialFitReport exponentialFitResiduals(const ExponentialSum& model,
+                                             std::span<const double> path_mm,
+                                             std::span<const double> transmission);
+
+}  // namespace xgauge

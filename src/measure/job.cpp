@@ -1,0 +1,167 @@
+#include "xgauge/measure/job.h"
+
+#include "xgauge/core/config.h"
+#include "xgauge/geometry/part_model.h"
+#include "xgauge/xray/machine.h"
+
+namespace xgauge {
+
+std::string_view acquisitionName(Acquisition pattern) {
+  switch (pattern) {
+    case Acquisition::kFree: return "free";
+    case Acquisition::kTranslated: return "translated";
+    case Acquisition::kRotated: return "rotated";
+    case Acquisition::kKnown: return "known";
+  }
+  return "?";
+}
+
+namespace {
+
+PixelRect rect(const ConfigNode& node) {
+  if (node.size() != 4) node.fail("expected [x, y, width, height]");
+  PixelRect r;
+  int* fields[] = {&r.x, &r.y, &r.width, &r.height};
+  for (size_t i = 0; i < 4; ++i) {
+    const double v = node[i].number(-1e6, 1e6);
+    if (v != std::floor(v)) node[i].fail("expected a whole number of pixels");
+    *fields[i] = static_cast<int>(v);
+  }
+  if (r.empty()) node.fail("the region is empty");
+  return r;
+}
+
+std::array<std::array<double, 2>, 3> ranges(const ConfigNode& node, double limit) {
+  if (node.size() != 3) node.fail("expected three [min, max] pairs");
+  std::array<std::array<double, 2>, 3> out{};
+  for (size_t i = 0; i < 3; ++i) {
+    const ConfigNode pair = node[i];
+    if (pair.size() != 2) pair.fail("expected [min, max]");
+    out[i] = {pair[0].number(-limit, limit), pair[1].number(-limit, limit)};
+    if (!(out[i][0] <= out[i][1])) pair.fail("min must not exceed max");
+  }
+  return out;
+}
+
+}  // namespace
+
+MeasurementJob MeasurementJob::load(const std::filesystem::path& path) {
+  const ConfigNode root = ConfigNode::loadFile(path);
+  const auto folder = path.parent_path();
+  MeasurementJob job;
+  job.file = path;
+  job.description = root.get<std::string>("description", "");
+  job.part_file = folder / root.get<std::string>("part");
+  job.machine_file = folder / root.get<std::string>("machine");
+  job.material_file = folder / root.get<std::string>("material");
+  const PartModel model = PartModel::load(job.part_file);
+
+  // Dimensions: free ones, fixed values, starts, bounds; names checked against the model.
+  auto known = [&](const ConfigNode& node, const std::string& name) {
+    try {
+      return model.dimensionIndex(name);
+    } catch (const Error& e) {
+      node.fail(e.message());
+    }
+  };
+  std::vector<bool> is_free(model.dimensions().size(), true);
+  if (auto dims = root.find("dimensions")) {
+    if (auto free = dims->find("free")) {
+      std::fill(is_free.begin(), is_free.end(), false);
+      for (size_t i = 0; i < free->size(); ++i)
+        is_free[static_cast<size_t>(known((*free)[i], (*free)[i].string()))] = true;
+    }
+    if (auto fixed = dims->find("fixed"))
+      for (const auto& name : fixed->keys()) {
+        const int index = known(fixed->at(name), name);
+        if (is_free[static_cast<size_t>(index)] && dims->has("free"))
+          fixed->at(name).fail(fmt::format("'{}' is listed as free and as fixed", name));
+        is_free[static_cast<size_t>(index)] = false;
+        job.fixed_dimensions[name] = fixed->at(name).number();
+      }
+    if (auto start = dims->find("start"))
+      for (const auto& name : start->keys()) {
+        known(start->at(name), name);
+        job.start[name] = start->at(name).number();
+      }
+    if (auto bounds = dims->find("bounds"))
+      for (const auto& name : bounds->keys()) {
+        const ConfigNode b = bounds->at(name);
+        known(b, name);
+        if (b.size() != 2) b.fail("expected [min, max]");
+        job.bounds[name] = {b[0].number(), b[1].number()};
+        if (!(job.bounds[name][0] < job.bounds[name][1])) b.fail("min must be below max");
+      }
+  }
+  for (size_t i = 0; i < is_free.size(); ++i)
+    if (is_free[i]) job.free_dimensions.push_back(model.dimensions()[i].name);
+  // Starts inside the bounds.
+  for (const auto& [name, value] : job.start) {
+    const Dimension& d = model.dimensions()[static_cast<size_t>(model.dimensionIndex(name))];
+    const auto b = job.bounds.count(name) ? job.bounds[name] : std::array<double, 2>{d.min, d.max};
+    if (value < b[0] || value > b[1])
+      root.at("dimensions").at("start").at(name).fail(
+          fmt::format("start {} lies outside the bounds [{}, {}]", value, b[0], b[1]));
+  }
+
+  if (auto scatter = root.find("scatter")) {
+    job.scatter.weight = scatter->at("weight").number(0.0, 0.9);
+    job.scatter.sigma_mm = scatter->at("sigma_mm").number(0.01, 1e4);
+  }
+
+  // Radiographs.
+  const ConfigNode list = root.at("radiographs");
+  if (list.size() < 1) list.fail("at least one radiograph is needed");
+  for (size_t i = 0; i < list.size(); ++i) {
+    const ConfigNode r = list[i];
+    RadiographSpec spec;
+    spec.name = r.get<std::string>("name");
+    for (const auto& other : job.radiographs)
+      if (other.name == spec.name) r.at("name").fail(fmt::format("two radiographs named '{}'", spec.name));
+    spec.image = folder / r.get<std::string>("image");
+    if (r.has("dark") != r.has("flat")) r.fail("give both dark and flat, or neither");
+    if (r.has("dark")) {
+      spec.dark = folder / r.get<std::string>("dark");
+      spec.flat = folder / r.get<std::string>("flat");
+    }
+    spec.white_region = rect(r.at("white_region"));
+    if (auto roi = r.find("roi")) spec.roi = rect(*roi);
+    const std::string pattern = r.get<std::string>("pattern", "free");
+    if (pattern == "free") spec.pattern = Acquisition::kFree;
+    else if (pattern == "translated") spec.pattern = Acquisition::kTranslated;
+    else if (pattern == "rotated") spec.pattern = Acquisition::kRotated;
+    else if (pattern == "known") spec.pattern = Acquisition::kKnown;
+    else r.at("pattern").fail(fmt::format("unknown pattern '{}' (known: free, translated, rotated, known)", pattern));
+    if (spec.pattern == Acquisition::kTranslated || spec.pattern == Acquisition::kRotated) {
+      const std::string ref = r.get<std::string>("reference");
+      for (size_t k = 0; k < job.radiographs.size(); ++k)
+        if (job.radiographs[k].name == ref) spec.reference = static_cast<int>(k);
+      if (spec.reference < 0)
+        r.at("reference").fail(fmt::format("no earlier radiograph named '{}'", ref));
+      if (spec.pattern == Acquisition::kTranslated) {
+        if (job.radiographs[static_cast<size_t>(spec.reference)].pattern == Acquisition::kTranslated)
+          r.at("reference").fail("the reference of a translated radiograph must not be translated itself");
+        spec.distance_mm = r.at("distance_mm").number(1e-6, 1e4);
+      }
+    }
+    if (spec.pattern == Acquisition::kKnown) spec.known_pose = poseFromConfig(r.at("pose"));
+    job.radiographs.push_back(std::move(spec));
+  }
+
+  const ConfigNode bounds = root.at("pose_bounds");
+  job.rotation_bounds_deg = ranges(bounds.at("rotation_deg"), 360.0);
+  job.centre_bounds_mm = ranges(bounds.at("centre_mm"), 1e5);
+  job.schedule = root.get<std::string>("schedule", "default");
+  if (job.schedule != "default" && job.schedule != "thesis")
+    root.at("schedule").fail(fmt::format("unknown schedule '{}' (known: default, thesis)", job.schedule));
+  job.loss = root.get<std::string>("loss", "l1");
+  if (job.loss != "l1" && job.loss != "l2") root.at("loss").fail("expected \"l1\" or \"l2\"");
+  if (auto seed = root.find("seed")) job.seed = static_cast<uint64_t>(seed->number(0, 1e15));
+  root.finish();
+
+  // The machine must exist and be valid now, so errors name the job.
+  Machine::load(job.machine_file);
+  return job;
+}
+
+}  // namespace xgauge

@@ -1,0 +1,97 @@
+// The measurement pipeline on radiographs rendered by xgauge's own renderer:
+// with no noise and no model error, it must find the dimensions exactly.
+#include "xgauge/measure/measure.h"
+
+#include "xgauge/core/progress.h"
+#include "xgauge/geometry/part_model.h"
+#include "xgauge/image/tiff.h"
+#include "xgauge/material/exponential_sum.h"
+#include "xgauge/xray/renderer.h"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+
+namespace xgauge {
+namespace {
+
+namespace fs = std::filesystem;
+const std::string kRoot = XGAUGE_SOURCE_DIR;
+
+class Measure : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    setProgressEnabled(false);
+    dir_ = fs::temp_directory_path() /
+           ("xgauge_measure_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override { if (!HasFailure()) fs::remove_all(dir_); }
+  fs::path dir_;
+};
+
+TEST_F(Measure, RecoversTheDimensionsOfANoiseFreeSelfRender) {
+  // The machine, the material and the truth.
+  Machine machine;
+  machine.source_detector_distance_mm = 1000.0;
+  machine.columns = machine.rows = 320;
+  machine.pitch_u_mm = machine.pitch_v_mm = 0.4;
+  machine.cx_px = 161.3, machine.cy_px = 158.9;
+  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+  const ExponentialSum material({{0.6, 0.03}, {0.3, 0.07}, {0.1, 0.25}});
+  std::ofstream(dir_ / "material.json") << material.toJson().dump();
+  const PartModel jaw = PartModel::load(kRoot + "/parts/prism_jaw.json");
+  const std::map<std::string, double> truth = {
+      {"width", 21.05},        {"groove_center", 10.39}, {"thickness", 12.96}, {"groove_depth", 6.98},
+      {"groove_left", 6.80},   {"groove_right", 7.01},   {"slot_width", 4.05}, {"slot_depth", 3.99}};
+  const TriangleMesh mesh = jaw.mesh(jaw.values(truth));
+  // Magnification about 2: the jaw is about 105 x 200 px, both shots inside the detector.
+  const Pose a = Pose::fromEulerDeg({1.5, 12.0, -0.8}, {-25.0, -20.0, 494.0});
+  Pose b = a;
+  const Vec3 axis = Vec3(1.0, 0.03, 0.05).normalized();
+  b.translation_mm += 30.0 * axis;
+
+  // Noise-free radiographs, 2 x 2 samples as the fit's last stage.
+  const auto table = TransmissionTable::forMaterial(material, 200.0);
+  RenderOptions options;
+  options.samples_per_axis = 2;
+  std::vector<Vec3> world;
+  for (const auto& [name, pose] : {std::pair{"a", a}, std::pair{"b", b}}) {
+    poseVertices(pose, mesh.vertices, world);
+    Image image;
+    renderIntensity(machine, {world, mesh.triangles}, table, options, image);
+    writeTiff(dir_ / (std::string(name) + ".tif"), image, TiffFormat::kFloat32);
+  }
+  std::ofstream(dir_ / "job.json") << R"({
+    "part": ")" + kRoot + R"(/parts/prism_jaw.json",
+    "machine": "machine.json", "material": "material.json",
+    "radiographs": [
+      {"name": "a", "image": "a.tif", "white_region": [4, 4, 30, 30], "pattern": "free"},
+      {"name": "b", "image": "b.tif", "white_region": [4, 4, 30, 30], "pattern": "translated",
+       "reference": "a", "distance_mm": 30.0}],
+    "pose_bounds": {"rotation_deg": [[-5, 5], [-30, 30], [-5, 5]],
+                    "centre_mm": [[-40, 40], [-30, 30], [470, 530]]},
+    "loss": "l2"})";
+  const MeasurementJob job = MeasurementJob::load(dir_ / "job.json");
+  const MeasurementResult result = measure(job);
+
+  for (const auto& d : result.dimensions) {
+    ASSERT_TRUE(d.free) << d.name;
+    EXPECT_NEAR(d.value, truth.at(d.name), 1e-4) << d.name;
+  }
+  // The translated pose keeps the known distance exactly, along the found axis.
+  const Vec3 moved = result.radiographs[1].pose.translation_mm - result.radiographs[0].pose.translation_mm;
+  EXPECT_NEAR(moved.norm(), 30.0, 1e-9);
+  EXPECT_LT((moved.normalized() - axis).norm(), 1e-4);
+  EXPECT_LT((result.radiographs[0].pose.translation_mm - a.translation_mm).norm(), 1e-3);
+
+  // Outputs.
+  writeMeasurementOutputs(job, result, dir_ / "out");
+  for (const char* file : {"result.json", "simulated_a.tif", "difference_b.tif", "difference_b.png"})
+    EXPECT_TRUE(fs::exists(dir_ / "out" / file)) << file;
+}
+
+}  // namespace
+}  // namespace xgauge

@@ -4,6 +4,7 @@
 #include "xgauge/image/tiff.h"
 
 #include <gtest/gtest.h>
+#include <tiffio.h>
 
 #include <array>
 #include <cstdio>
@@ -217,6 +218,81 @@ TEST_F(Cli, NormalizeRejectsMismatchedFrames) {
   const CommandResult none = run("normalize " + out("raw.tif") + " -o " + out("n.tif"));
   EXPECT_NE(none.status, 0);
   EXPECT_FALSE(fs::exists(out("n.tif")));
+}
+
+}  // namespace
+}  // namespace xgauge
+
+namespace xgauge {
+namespace {
+
+// A small valid measurement job, for the bad-input tests to break one piece of.
+class MeasureJob : public Cli {
+ protected:
+  void SetUp() override {
+    Cli::SetUp();
+    write("machine.json", kMachine);
+    write("material.json", R"({"model": "exponential_sum", "terms": [{"weight": 1, "mu_per_mm": 0.05}]})");
+    Image image(128, 96, 1.0f);
+    for (int y = 30; y < 60; ++y)
+      for (int x = 40; x < 90; ++x) image(x, y) = 0.6f;
+    writeTiff(out("a.tif"), image, TiffFormat::kFloat32);
+  }
+  std::string job(const std::string& radiograph_extra = "", const std::string& top_extra = "",
+                  const std::string& image = "a.tif") {
+    return write("job.json", R"({
+      "part": ")" + kRoot + R"(/parts/cuboid.json",
+      "machine": "machine.json", "material": "material.json",
+      "radiographs": [{"name": "a", "image": ")" + image + R"(", "white_region": [0, 0, 16, 16])" +
+                                 radiograph_extra + R"(}],
+      "pose_bounds": {"rotation_deg": [[-5, 5], [-5, 5], [-5, 5]],
+                      "centre_mm": [[-10, 10], [-10, 10], [390, 410]]})" + top_extra + "}");
+  }
+  void expectJobFailure(const std::string& job_file, const std::string& message) {
+    const CommandResult r = run("measure " + job_file + " -o " + out("result") + " -q");
+    EXPECT_NE(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << "expected '" << message << "' in:\n" << r.output;
+    EXPECT_FALSE(fs::exists(out("result") + "/result.json"));
+  }
+};
+
+TEST_F(MeasureJob, MissingImage) { expectJobFailure(job("", "", "nope.tif"), "nope.tif"); }
+
+TEST_F(MeasureJob, ImageSizeDoesNotMatchTheMachine) {
+  writeTiff(out("small.tif"), Image(64, 48, 1.0f), TiffFormat::kFloat32);
+  expectJobFailure(job("", "", "small.tif"), "is 64x48 pixels but the machine's detector is 128x96");
+}
+
+TEST_F(MeasureJob, RegionOutsideTheImage) {
+  expectJobFailure(job(R"(, "roi": [100, 50, 64, 64])"), "roi");
+}
+
+TEST_F(MeasureJob, UnknownKey) {
+  expectJobFailure(job("", R"(, "schedul": "default")"), "unknown key 'schedul'; did you mean 'schedule'?");
+}
+
+TEST_F(MeasureJob, StartOutsideBounds) {
+  expectJobFailure(job("", R"(, "dimensions": {"start": {"size_x": 99}})"), "outside the bounds");
+}
+
+TEST_F(MeasureJob, NanPixels) {
+  // xgauge's writeTiff refuses NaN, so write the file with libtiff directly.
+  TIFF* tiff = TIFFOpen(out("nan.tif").c_str(), "w");
+  ASSERT_NE(tiff, nullptr);
+  TIFFSetField(tiff, TIFFTAG_IMAGEWIDTH, 128);
+  TIFFSetField(tiff, TIFFTAG_IMAGELENGTH, 96);
+  TIFFSetField(tiff, TIFFTAG_SAMPLESPERPIXEL, 1);
+  TIFFSetField(tiff, TIFFTAG_BITSPERSAMPLE, 32);
+  TIFFSetField(tiff, TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_IEEEFP);
+  TIFFSetField(tiff, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
+  TIFFSetField(tiff, TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
+  std::vector<float> row(128, 1.0f);
+  for (uint32_t y = 0; y < 96; ++y) {
+    row[7] = y == 5 ? std::numeric_limits<float>::quiet_NaN() : 1.0f;
+    ASSERT_EQ(TIFFWriteScanline(tiff, row.data(), y, 0), 1);
+  }
+  TIFFClose(tiff);
+  expectJobFailure(job("", "", "nan.tif"), "pixel (7, 5) is nan");
 }
 
 }  // namespace

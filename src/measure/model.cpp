@@ -268,6 +268,29 @@ Image ForwardModel::simulate(std::span<const double> theta, int radiograph, int 
   return out;
 }
 
+bool ForwardModel::residuals(std::span<const double> theta, int level, int samples,
+                             std::span<const int> radiographs, std::vector<double>& out) {
+  out.clear();
+  try {
+    part_.validate(theta.first(part_.dimensions().size()));
+    for (int r : radiographs) {
+      const PreparedRadiograph& rad = radiographs_[static_cast<size_t>(r)];
+      const PixelRect roi = rad.rois[static_cast<size_t>(level)];
+      rendered_ = simulate(theta, r, level, samples, roi);
+      const Image& measured = rad.levels[static_cast<size_t>(level)];
+      const double scale = 1.0 / std::sqrt(static_cast<double>(roi.area()));
+      for (int y = 0; y < roi.height; ++y)
+        for (int x = 0; x < roi.width; ++x)
+          out.push_back(scale * (static_cast<double>(rendered_(x, y)) -
+                                 static_cast<double>(measured(roi.x + x, roi.y + y))));
+    }
+  } catch (const Error& e) {
+    spdlog::debug("invalid parameters: {}", e.message());
+    return false;
+  }
+  return true;
+}
+
 double ForwardModel::loss(std::span<const double> theta, int level, int samples,
                           std::span<const int> radiographs) {
   const LossKind kind = lossKindFromName(job_.loss);

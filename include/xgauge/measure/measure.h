@@ -8,11 +8,12 @@
 //            parameter of every radiograph together at full resolution,
 //            Nelder-Mead, 5000 evaluations.
 //   default  the same structure, faster: the initial position comes from the
-//            shadow's centroid, the global search samples 150 points around it,
-//            local stages use BOBYQA with restarts and small budgets on coarse
-//            levels, and the joint fit runs coarse to fine (512, 1024 and 2048 px
-//            wide, then full size) with 2 x 2 area sampling, so sub-pixel changes
-//            are seen.
+//            shadow's centroid, the global search samples 150 points around it
+//            and refines the best 4 (multi-start) with BOBYQA, local
+//            stages use BOBYQA with restarts and small budgets on coarse levels,
+//            and the joint fit runs coarse to fine on levels 512, 1024 and 2048 px
+//            wide (or full size when smaller) with 2 x 2 area sampling, so
+//            sub-pixel changes are seen.
 #pragma once
 
 #include "xgauge/core/transform.h"

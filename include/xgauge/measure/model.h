@@ -62,6 +62,11 @@ class ForwardModel {
   // Sum over `radiographs` of the loss at pyramid `level` with n x n samples.
   double loss(std::span<const double> theta, int level, int samples,
               std::span<const int> radiographs);
+  // The residuals (simulated - measured) over every roi of `radiographs`, each
+  // scaled by 1 / sqrt(its pixel count) so that their squared sum is the L2
+  // loss. Returns false for parameters the part or the beam cannot take.
+  bool residuals(std::span<const double> theta, int level, int samples,
+                 std::span<const int> radiographs, std::vector<double>& out);
   // The simulated normalized image of one radiograph over `region` (pixels of
   // `level`), as compared in the loss.
   Image simulate(std::span<const double> theta, int radiograph, int level, int samples,

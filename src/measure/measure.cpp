@@ -146,25 +146,37 @@ std::vector<int> range(int first, int count) {
   return out;
 }
 
-// Levenberg-Marquardt on the per-pixel residuals (the L2 loss), for the
-// final refinement: where a derivative-free method crawls along a narrow
-// valley (depth against size against a translation's depth component), the
-// Gauss-Newton step goes straight down it. Forward-difference Jacobian with
-// small physical steps; bounds are kept by clamping.
+// Levenberg-Marquardt on the per-pixel residuals, for the final refinement:
+// where a derivative-free method crawls along a narrow valley (depth against
+// size against a translation's depth component), the Gauss-Newton step goes
+// straight down it. Forward-difference Jacobian with small physical steps;
+// bounds are kept by clamping. With `robust`, the L1 loss is minimised by
+// iteratively reweighted least squares: weights 1 / max(|r|, a tenth of the
+// median |r|), recomputed at every iteration.
 StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
                                const std::vector<int>& indices, const std::vector<int>& radiographs,
-                               int level, int samples, int max_iterations) {
+                               int level, int samples, int max_iterations, bool robust) {
   const auto start = std::chrono::steady_clock::now();
   StageReport report;
-  report.name = "joint, least squares";
-  report.method = "levenberg_marquardt";
+  report.name = robust ? "joint, reweighted least squares" : "joint, least squares";
+  report.method = robust ? "levenberg_marquardt_irls" : "levenberg_marquardt";
   report.level = level;
   report.samples = samples;
   const size_t n = indices.size();
   std::vector<double> r, trial_r;
-  auto cost = [](const std::vector<double>& v) {
+  std::vector<double> weight;
+  auto reweight = [&](const std::vector<double>& v) {
+    weight.assign(v.size(), 1.0);
+    if (!robust || v.empty()) return;
+    std::vector<double> magnitude(v.size());
+    for (size_t m = 0; m < v.size(); ++m) magnitude[m] = std::abs(v[m]);
+    std::nth_element(magnitude.begin(), magnitude.begin() + static_cast<ptrdiff_t>(v.size() / 2), magnitude.end());
+    const double floor = std::max(1e-30, 0.1 * magnitude[v.size() / 2]);
+    for (size_t m = 0; m < v.size(); ++m) weight[m] = 1.0 / std::max(std::abs(v[m]), floor);
+  };
+  auto cost = [&](const std::vector<double>& v) {
     double c = 0.0;
-    for (double x : v) c += x * x;
+    for (size_t m = 0; m < v.size(); ++m) c += weight[m] * v[m] * v[m];
     return c;
   };
   if (!model.residuals(theta, level, samples, radiographs, r)) {
@@ -172,6 +184,7 @@ StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
     return report;
   }
   ++report.evaluations;
+  reweight(r);
   double current = cost(r);
   report.loss_before = current;
   double lambda = 1e-3;
@@ -196,8 +209,10 @@ StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
     }
     if (iteration >= max_iterations) break;
     const Eigen::Map<const Eigen::VectorXd> residual(r.data(), static_cast<Eigen::Index>(r.size()));
-    const Eigen::MatrixXd normal = jacobian.transpose() * jacobian;
-    const Eigen::VectorXd gradient = jacobian.transpose() * residual;
+    const Eigen::Map<const Eigen::VectorXd> w(weight.data(), static_cast<Eigen::Index>(weight.size()));
+    const Eigen::MatrixXd weighted = w.asDiagonal() * jacobian;
+    const Eigen::MatrixXd normal = jacobian.transpose() * weighted;
+    const Eigen::VectorXd gradient = weighted.transpose() * residual;
     bool improved = false;
     for (int attempt = 0; attempt < 10 && !improved; ++attempt) {
       Eigen::MatrixXd damped = normal;
@@ -214,7 +229,9 @@ StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
         theta = candidate, r = trial_r, current = cost(r);
         lambda = std::max(1e-9, lambda / 3.0);
         improved = true;
-        if (previous - current < 1e-12 * previous) {
+        const bool settled = previous - current < 1e-12 * previous;
+        if (robust) reweight(r), current = cost(r);
+        if (settled) {
           report.termination = "converged (relative decrease below 1e-12)";
           iteration = max_iterations;
         }
@@ -381,8 +398,9 @@ void planSchedule(ForwardModel& model, std::vector<double>& theta, Runner& runne
     runner.run(plan);
     finest = level;
   }
-  // With the L2 loss, finish by least squares on the residuals.
-  if (model.job().loss == "l2") runner.report(refineLeastSquares(model, theta, all, every_radiograph, finest, 2, 30));
+  // Finish by (reweighted) least squares on the residuals.
+  runner.report(refineLeastSquares(model, theta, all, every_radiograph, finest, 2, 30,
+                                   model.job().loss == "l1"));
 }
 
 }  // namespace

@@ -49,20 +49,22 @@ std::vector<Combination> combinations(const DatasetTruth& truth, const std::stri
   return out;
 }
 
-// A job for one combination, from the settings (everything but the data).
-nlohmann::json jobFor(const nlohmann::json& settings, const DatasetTruth& truth, const Combination& c,
-                      const fs::path& machine, const fs::path& material) {
+}  // namespace
+
+nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& truth,
+                        const std::vector<std::string>& shots, const StudyInputs& inputs,
+                        const std::string& id) {
   nlohmann::json job = settings;
   job.erase("material");
-  job["description"] = "study run " + c.id;
+  job["description"] = "study run " + id;
   job["part"] = fs::absolute(truth.part_file).string();
-  job["machine"] = fs::absolute(machine).string();
-  job["material"] = fs::absolute(material).string();
+  job["machine"] = fs::absolute(inputs.machine).string();
+  job["material"] = fs::absolute(inputs.material).string();
   const auto& w = truth.white_region;
   nlohmann::json radiographs = nlohmann::json::array();
-  const TruthShot& first = truth.shot(c.shots[0]);
-  for (size_t i = 0; i < c.shots.size(); ++i) {
-    const TruthShot& s = truth.shot(c.shots[i]);
+  const TruthShot& first = truth.shot(shots[0]);
+  for (size_t i = 0; i < shots.size(); ++i) {
+    const TruthShot& s = truth.shot(shots[i]);
     nlohmann::json r = {{"name", s.name},
                         {"image", fs::absolute(s.file).string()},
                         {"dark", fs::absolute(truth.dark).string()},
@@ -84,7 +86,28 @@ nlohmann::json jobFor(const nlohmann::json& settings, const DatasetTruth& truth,
   return job;
 }
 
-}  // namespace
+StudyInputs prepareStudyInputs(const DatasetTruth& truth, const nlohmann::json& settings,
+                               const fs::path& settings_file, const fs::path& folder) {
+  fs::create_directories(folder);
+  StudyInputs inputs{folder / "machine.json", folder / "material.json"};
+  writeFileAtomically(inputs.machine, truth.machine.dump(2) + "\n");
+  std::string material = "fit";
+  if (const auto it = settings.find("material"); it != settings.end()) {
+    if (!it->is_string()) fail("{}: /material: expected \"fit\" or a file name", settings_file.string());
+    material = it->get<std::string>();
+  }
+  if (material == "fit") {
+    ExponentialFitReport report;
+    const ExponentialSum fitted = fitExponentialSum(truth.path_mm, truth.transmission, 3, {}, &report);
+    nlohmann::json m = fitted.toJson();
+    m["description"] = fmt::format("3 exponentials fitted to {} (max residual {:.2e})",
+                                   (truth.folder / "truth.json").string(), report.max_abs_residual);
+    writeFileAtomically(inputs.material, m.dump(2) + "\n");
+  } else {
+    inputs.material = settings_file.parent_path() / material;
+  }
+  return inputs;
+}
 
 std::string StudySummary::table() const {
   std::string out = fmt::format("{:<18} {:>14} {:>14}\n", "dimension", "mean |err| mm", "max |err| mm");
@@ -102,20 +125,7 @@ StudySummary runStudy(const StudyOptions& options) {
   fs::create_directories(options.output / "runs");
 
   // The machine from the dataset; the material from the settings or fitted.
-  const fs::path machine = options.output / "machine.json";
-  writeFileAtomically(machine, truth.machine.dump(2) + "\n");
-  fs::path material = options.output / "material.json";
-  const std::string material_setting = settings.value("material", "fit");
-  if (material_setting == "fit") {
-    ExponentialFitReport report;
-    const ExponentialSum fitted = fitExponentialSum(truth.path_mm, truth.transmission, 3, {}, &report);
-    nlohmann::json m = fitted.toJson();
-    m["description"] = fmt::format("3 exponentials fitted to {} (max residual {:.2e})",
-                                   (options.dataset / "truth.json").string(), report.max_abs_residual);
-    writeFileAtomically(material, m.dump(2) + "\n");
-  } else {
-    material = options.settings.parent_path() / material_setting;
-  }
+  const StudyInputs inputs = prepareStudyInputs(truth, settings, options.settings, options.output);
 
   std::vector<Combination> runs = combinations(truth, options.combinations);
   if (options.limit > 0 && static_cast<size_t>(options.limit) < runs.size())
@@ -126,7 +136,7 @@ StudySummary runStudy(const StudyOptions& options) {
   for (const auto& c : runs) {
     const fs::path folder = options.output / "runs" / c.id;
     fs::create_directories(folder);
-    writeFileAtomically(folder / "job.json", jobFor(settings, truth, c, machine, material).dump(2) + "\n");
+    writeFileAtomically(folder / "job.json", studyJob(settings, truth, c.shots, inputs, c.id).dump(2) + "\n");
     jobs.push_back(MeasurementJob::load(folder / "job.json"));
   }
 

@@ -13,6 +13,10 @@
 // not run again, so an interrupted study resumes where it stopped.
 #pragma once
 
+#include "xgauge/measure/truth.h"
+
+#include <nlohmann/json.hpp>
+
 #include <filesystem>
 #include <map>
 #include <string>
@@ -48,5 +52,20 @@ struct StudySummary {
 // Runs (or resumes) the study; writes runs/<id>/, study.csv and study.json
 // into options.output.
 StudySummary runStudy(const StudyOptions& options);
+
+// The pieces a study builds its jobs from, for other drivers (benchmarks):
+// the dataset's machine and the material (fitted unless the settings name
+// one), written into `folder`.
+struct StudyInputs {
+  std::filesystem::path machine, material;
+};
+StudyInputs prepareStudyInputs(const DatasetTruth& truth, const nlohmann::json& settings,
+                               const std::filesystem::path& settings_file,
+                               const std::filesystem::path& folder);
+// A job measuring `shots` of the dataset: the first free, the others
+// translated (or rotated) from it.
+nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& truth,
+                        const std::vector<std::string>& shots, const StudyInputs& inputs,
+                        const std::string& id);
 
 }  // namespace xgauge

@@ -246,9 +246,9 @@ StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
   }
   report.loss_after = current;
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  spdlog::info("{}: loss {:.6g} -> {:.6g} in {} evaluations, {:.2f} s ({})", report.name,
-               report.loss_before, report.loss_after, report.evaluations, report.seconds,
-               report.termination);
+  spdlog::info("{}: {} {:.6g} -> {:.6g} in {} evaluations, {:.2f} s ({})", report.name,
+               robust ? "reweighted squared residuals" : "loss", report.loss_before,
+               report.loss_after, report.evaluations, report.seconds, report.termination);
   return report;
 }
 

@@ -31,8 +31,8 @@ struct StageReport {
   int samples = 1;        // area samples per axis
   int evaluations = 0;
   double seconds = 0.0;
-  double loss_before = 0.0;
-  double loss_after = 0.0;
+  double loss_before = 0.0;  // the stage's objective (for the reweighted least-squares
+  double loss_after = 0.0;   // stage: the weighted sum of squared residuals)
   std::string termination;
 };
 

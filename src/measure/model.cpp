@@ -268,48 +268,50 @@ Image ForwardModel::simulate(std::span<const double> theta, int radiograph, int 
   return out;
 }
 
-bool ForwardModel::residuals(std::span<const double> theta, int level, int samples,
-                             std::span<const int> radiographs, std::vector<double>& out) {
-  out.clear();
+bool ForwardModel::forEachSimulated(
+    std::span<const double> theta, int level, int samples, std::span<const int> radiographs,
+    const std::function<void(const PreparedRadiograph&, const PixelRect&, const Image&)>& use) {
   try {
     part_.validate(theta.first(part_.dimensions().size()));
     for (int r : radiographs) {
       const PreparedRadiograph& rad = radiographs_[static_cast<size_t>(r)];
       const PixelRect roi = rad.rois[static_cast<size_t>(level)];
       rendered_ = simulate(theta, r, level, samples, roi);
-      const Image& measured = rad.levels[static_cast<size_t>(level)];
-      const double scale = 1.0 / std::sqrt(static_cast<double>(roi.area()));
-      for (int y = 0; y < roi.height; ++y)
-        for (int x = 0; x < roi.width; ++x)
-          out.push_back(scale * (static_cast<double>(rendered_(x, y)) -
-                                 static_cast<double>(measured(roi.x + x, roi.y + y))));
+      use(rad, roi, rendered_);
     }
   } catch (const Error& e) {
+    // Dimensions the part cannot take, or a pose outside the beam: a bad
+    // point for the optimiser, not a failure of the measurement.
     spdlog::debug("invalid parameters: {}", e.message());
     return false;
   }
   return true;
 }
 
+bool ForwardModel::residuals(std::span<const double> theta, int level, int samples,
+                             std::span<const int> radiographs, std::vector<double>& out) {
+  out.clear();
+  return forEachSimulated(theta, level, samples, radiographs,
+                          [&](const PreparedRadiograph& rad, const PixelRect& roi, const Image& simulated) {
+                            const Image& measured = rad.levels[static_cast<size_t>(level)];
+                            const double scale = 1.0 / std::sqrt(static_cast<double>(roi.area()));
+                            for (int y = 0; y < roi.height; ++y)
+                              for (int x = 0; x < roi.width; ++x)
+                                out.push_back(scale * (static_cast<double>(simulated(x, y)) -
+                                                       static_cast<double>(measured(roi.x + x, roi.y + y))));
+                          });
+}
+
 double ForwardModel::loss(std::span<const double> theta, int level, int samples,
                           std::span<const int> radiographs) {
   const LossKind kind = lossKindFromName(job_.loss);
   double total = 0.0;
-  try {
-    part_.validate(theta.first(part_.dimensions().size()));
-    for (int r : radiographs) {
-      const PreparedRadiograph& rad = radiographs_[static_cast<size_t>(r)];
-      const PixelRect roi = rad.rois[static_cast<size_t>(level)];
-      rendered_ = simulate(theta, r, level, samples, roi);
-      total += imageLoss(rendered_, rad.levels[static_cast<size_t>(level)], roi, kind);
-    }
-  } catch (const Error& e) {
-    // Dimensions the part cannot take, or a pose outside the beam: a bad
-    // point for the optimiser, not a failure of the measurement.
-    spdlog::debug("invalid parameters: {}", e.message());
-    return kInvalidLoss;
-  }
-  return total;
+  const bool valid = forEachSimulated(
+      theta, level, samples, radiographs,
+      [&](const PreparedRadiograph& rad, const PixelRect& roi, const Image& simulated) {
+        total += imageLoss(simulated, rad.levels[static_cast<size_t>(level)], roi, kind);
+      });
+  return valid ? total : kInvalidLoss;
 }
 
 }  // namespace xgauge

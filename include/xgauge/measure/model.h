@@ -20,6 +20,7 @@
 #include "xgauge/measure/job.h"
 #include "xgauge/xray/machine.h"
 
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -74,6 +75,12 @@ class ForwardModel {
 
  private:
   Machine machineAt(int level) const;
+  // Validates the dimensions, then calls use(radiograph, roi, simulated roi)
+  // for each of `radiographs`; false (and no further calls) for parameters
+  // the part or the beam cannot take.
+  bool forEachSimulated(
+      std::span<const double> theta, int level, int samples, std::span<const int> radiographs,
+      const std::function<void(const PreparedRadiograph&, const PixelRect&, const Image&)>& use);
 
   MeasurementJob job_;
   PartModel part_;

@@ -1,10 +1,10 @@
 #include "xgauge/measure/model.h"
 
 #include "xgauge/image/bad_pixels.h"
+#include "xgauge/image/blur.h"
 #include "xgauge/image/pyramid.h"
 #include "xgauge/image/stats.h"
 #include "xgauge/image/tiff.h"
-#include "xgauge/lab/detector.h"
 #include "xgauge/loss/loss.h"
 #include "xgauge/material/exponential_sum.h"
 #include "xgauge/xray/renderer.h"

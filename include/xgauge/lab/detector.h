@@ -23,6 +23,7 @@
 #pragma once
 
 #include "xgauge/core/config.h"
+#include "xgauge/image/blur.h"
 #include "xgauge/image/image.h"
 
 #include <cstdint>
@@ -33,54 +34,8 @@ namespace xgauge {
 // Scintillator scatter
 // ---------------------------------------------------------------------------
 
-// The thesis's fit of the scatter of its 4096 x 4096 panel of 0.1 mm pixels
-// (eq. 5.4): weight 0.139 of the light spread by a Gaussian of 500 px = 50 mm.
-// For another pixel pitch, sigma_px = kThesisScatterSigmaMm / pitch_mm.
-inline constexpr double kThesisScatterWeight = 0.139;
-inline constexpr double kThesisScatterSigmaMm = 50.0;
 
-// Gaussian blur with standard deviation `sigma_px` (pixels, >= 0; 0 returns a
-// copy) and half-sample-symmetric mirror boundaries (the image reflected about
-// its outer pixel edges, and again as often as a wide kernel needs).
-//
-// Kernel: the sampled Gaussian exp(-k^2 / (2 sigma^2)) for |k| <= ceil(4.5
-// sigma), divided by its sum, applied along rows and then columns.
-//
-// Sigma below 16 px: that separable convolution exactly (float arithmetic).
-// Larger sigma: the image is box-averaged in f x f blocks (f the largest power
-// of two with sigma / f >= 8), the small image blurred by the sampled
-// Gaussian with sigma_small = sqrt(sigma^2 - (f^2 - 1) / 12 - f^2 / 6) / f
-// (the box and the bilinear interpolation back add (f^2 - 1) / 12 and, on
-// average, f^2 / 6 to the variance, so the kernel's variance stays sigma^2),
-// and interpolated bilinearly back to full size (pixel centres aligned). The
-// kernel shape then differs from the Gaussian by up to 3e-4 of the image's
-// range; cost is two passes over the image whatever sigma is (4096 x 4096
-// with sigma 500 px: 10 ms on 2 cores in place, see below).
-//
-// The image sum is preserved (to float rounding, about 1e-7 relative) and a
-// constant image stays constant. The mirror convolution with a normalised
-// symmetric kernel keeps the sum exactly; so does the large-sigma path when f
-// divides width and height (block means, bilinear weights that give every
-// block f^2 pixels' worth). Where it does not, the blocks at the right and
-// bottom edge reach past the image and are filled by mirroring, and the sum
-// is restored by adding the difference to the blurred image in proportion to
-// its magnitude: a scale factor for an image >= 0, off 1 by a few 1e-5 for a
-// random 4000 x 3000 image (sigma 500 px, f = 32).
-//
-// The image is taken by value: pass an rvalue (std::move) and the large-sigma
-// path blurs in place, sparing the allocation of a new image (for 4096 x 4096,
-// 64 MiB of fresh pages cost more than the blur itself: 30 ms against 10).
-//
-// Throws Error if sigma_px is negative or not finite.
-Image gaussianBlur(Image image, double sigma_px);
-
-// Scintillator scatter, thesis eq. 5.4: weight * G(image, sigma_px) +
-// (1 - weight) * image. The blurred part lowers the bright side of every edge
-// and raises the dark side ("shadows"); the edge itself stays sharp. Preserves
-// the image sum and works in place like gaussianBlur. The defaults of the thesis are
-// kThesisScatterWeight and kThesisScatterSigmaMm / pitch.
-// Throws Error if weight is outside [0, 1] or sigma_px as gaussianBlur.
-Image scatterBlur(Image image, double weight, double sigma_px);
+// gaussianBlur and scatterBlur: image/blur.h.
 
 // ---------------------------------------------------------------------------
 // Noise and fixed-pattern artefacts

@@ -20,7 +20,7 @@ constexpr int kMaxTerms = 8;
 constexpr double kMaxTransmission = 1.0 + 1e-9;
 
 void checkCurve(std::span<const double> path_mm, std::span<const double> transmission,
-                size_t min_points) {
+                size_t min_points, double max_transmission = kMaxTransmission) {
   if (path_mm.size() != transmission.size())
     fail("path_mm has {} values but transmission has {}", path_mm.size(), transmission.size());
   if (path_mm.size() < min_points)
@@ -32,22 +32,24 @@ void checkCurve(std::span<const double> path_mm, std::span<const double> transmi
     if (i > 0 && !(x > path_mm[i - 1]))
       fail("path_mm must be strictly increasing: path_mm[{}] = {} follows path_mm[{}] = {}", i, x,
            i - 1, path_mm[i - 1]);
-    if (!std::isfinite(t) || !(t > 0.0) || t > kMaxTransmission)
-      fail("transmission[{}] = {} (at {} mm) is not in (0, 1]", i, t, x);
+    if (!std::isfinite(t) || !(t > 0.0) || t > max_transmission)
+      fail("transmission[{}] = {} (at {} mm) is not in (0, {}]", i, t, x,
+           max_transmission == kMaxTransmission ? 1.0 : max_transmission);
   }
 }
 
 // The variable-projection subproblem: for fixed decay rates mu, the weights a
-// minimising || W (B(mu) a - T) ||^2 subject to a >= 0, sum a = 1, with
-// B_ik = exp(-mu_k x_i).
+// minimising || W (B(mu) a - T) ||^2 subject to a >= 0 (and sum a = 1 unless
+// the amplitude is free), with B_ik = exp(-mu_k x_i).
 class ProjectedProblem {
  public:
   ProjectedProblem(std::span<const double> path_mm, std::span<const double> transmission,
-                   ExponentialFitOptions::Weighting weighting)
+                   ExponentialFitOptions::Weighting weighting, bool sum_to_one)
       : x_(Eigen::Map<const Eigen::VectorXd>(path_mm.data(),
                                              static_cast<Eigen::Index>(path_mm.size()))),
         w_(x_.size()),
-        y_(x_.size()) {
+        y_(x_.size()),
+        sum_to_one_(sum_to_one) {
     for (Eigen::Index i = 0; i < x_.size(); ++i) {
       const double t = transmission[static_cast<size_t>(i)];
       w_[i] = weighting == ExponentialFitOptions::Weighting::kRelative ? 1.0 / t : 1.0;
@@ -82,10 +84,10 @@ class ProjectedProblem {
   }
 
  private:
-  // Equality-constrained least squares over the terms in `support` (a bit
-  // mask), others held at 0: eliminate the last term's weight as 1 - the sum
-  // of the others and solve the rest by a rank-revealing QR. Returns infinity
-  // when a weight comes out negative.
+  // Least squares over the terms in `support` (a bit mask), others held at 0,
+  // by a rank-revealing QR. With the sum fixed to 1 the last term's weight is
+  // eliminated as 1 - the sum of the others. Returns infinity when a weight
+  // comes out negative.
   double solveOnSupport(const Eigen::MatrixXd& basis, unsigned support,
                         Eigen::VectorXd& weights) const {
     const int m = static_cast<int>(basis.cols());
@@ -94,6 +96,17 @@ class ProjectedProblem {
     for (int k = 0; k < m; ++k)
       if (support & (1u << k)) terms[static_cast<size_t>(count++)] = k;
     XG_CHECK(count > 0, "empty support");
+    if (!sum_to_one_) {
+      Eigen::MatrixXd reduced(basis.rows(), count);
+      for (int j = 0; j < count; ++j) reduced.col(j) = basis.col(terms[static_cast<size_t>(j)]);
+      const Eigen::VectorXd z = reduced.completeOrthogonalDecomposition().solve(y_);
+      weights = Eigen::VectorXd::Zero(m);
+      for (int j = 0; j < count; ++j) {
+        if (!(z[j] >= 0.0)) return std::numeric_limits<double>::infinity();
+        weights[terms[static_cast<size_t>(j)]] = z[j];
+      }
+      return (basis * weights - y_).squaredNorm();
+    }
     const int last = terms[static_cast<size_t>(count - 1)];
     weights = Eigen::VectorXd::Zero(m);
     weights[last] = 1.0;
@@ -117,6 +130,7 @@ class ProjectedProblem {
   Eigen::VectorXd x_;
   Eigen::VectorXd w_;  // per-point weight w_i
   Eigen::VectorXd y_;  // w_i T_i
+  bool sum_to_one_;
 };
 
 // Decay rate -d ln T / dx estimated by chords over the first and last tenth
@@ -133,19 +147,25 @@ std::pair<double, double> observedDecayRates(std::span<const double> x, std::spa
   return {std::min(rate_head, rate_tail), std::max(rate_head, rate_tail)};
 }
 
+double evaluate(const std::vector<ExponentialTerm>& terms, double x) {
+  double sum = 0.0;
+  for (const ExponentialTerm& term : terms) sum += term.weight * std::exp(-term.mu_per_mm * x);
+  return sum;
+}
+
 // The model's residuals against the curve (no input checks).
-ExponentialFitReport residualsOf(const ExponentialSum& model, std::span<const double> x,
-                                 std::span<const double> t) {
+ExponentialFitReport residualsOf(const std::vector<ExponentialTerm>& model,
+                                 std::span<const double> x, std::span<const double> t) {
   ExponentialFitReport report;
   double sum_squares = 0.0;
   for (size_t i = 0; i < x.size(); ++i) {
-    const double r = model.transmission(x[i]) - t[i];
+    const double r = evaluate(model, x[i]) - t[i];
     sum_squares += r * r;
     report.max_abs_residual = std::max(report.max_abs_residual, std::abs(r));
     report.max_relative_residual = std::max(report.max_relative_residual, std::abs(r) / t[i]);
   }
   report.rms_residual = std::sqrt(sum_squares / static_cast<double>(x.size()));
-  report.terms_used = static_cast<int>(model.terms().size());
+  report.terms_used = static_cast<int>(model.size());
   return report;
 }
 
@@ -158,17 +178,20 @@ void ExponentialFitOptions::validate() const {
     fail("max_evaluations_per_start must be >= 100, got {}", max_evaluations_per_start);
 }
 
-ExponentialSum fitExponentialSum(std::span<const double> path_mm,
-                                 std::span<const double> transmission, int terms,
-                                 const ExponentialFitOptions& options,
-                                 ExponentialFitReport* report) {
+std::vector<ExponentialTerm> fitExponentialTerms(std::span<const double> path_mm,
+                                                 std::span<const double> transmission, int terms,
+                                                 const ExponentialFitOptions& options,
+                                                 ExponentialFitReport* report) {
   options.validate();
   if (terms < 1 || terms > kMaxTerms)
     fail("an exponential-sum fit needs 1 to {} terms, got {}", kMaxTerms, terms);
-  // Free parameters: terms rates and terms - 1 weights (they sum to 1).
-  checkCurve(path_mm, transmission, static_cast<size_t>(std::max(2, 2 * terms - 1)));
+  // Free parameters: terms rates and terms weights, less one when they sum to 1.
+  const bool sum_to_one = !options.free_amplitude;
+  checkCurve(path_mm, transmission,
+             static_cast<size_t>(std::max(2, 2 * terms - (sum_to_one ? 1 : 0))),
+             sum_to_one ? kMaxTransmission : 2.0);
 
-  const ProjectedProblem problem(path_mm, transmission, options.weighting);
+  const ProjectedProblem problem(path_mm, transmission, options.weighting, sum_to_one);
   const size_t m = static_cast<size_t>(terms);
   const size_t n = path_mm.size();
 
@@ -277,22 +300,93 @@ ExponentialSum fitExponentialSum(std::span<const double> path_mm,
       merged.push_back(term);
   }
   XG_CHECK(!merged.empty(), "the exponential fit kept no term");
-
-  ExponentialSum model(std::move(merged),
-                       fmt::format("{}-term exponential-sum fit to {} points", terms, n));
   if (report) {
-    *report = residualsOf(model, path_mm, transmission);
+    *report = residualsOf(merged, path_mm, transmission);
     report->evaluations = evaluations;
     report->starts = starts;
   }
-  return model;
+  return merged;
+}
+
+ExponentialSum fitExponentialSum(std::span<const double> path_mm,
+                                 std::span<const double> transmission, int terms,
+                                 const ExponentialFitOptions& options,
+                                 ExponentialFitReport* report) {
+  if (options.free_amplitude)
+    fail(
+        "fitExponentialSum fits weights that sum to 1; use fitExponentialTerms for a free "
+        "amplitude");
+  return ExponentialSum(
+      fitExponentialTerms(path_mm, transmission, terms, options, report),
+      fmt::format("{}-term exponential-sum fit to {} points", terms, path_mm.size()));
+}
+
+ExponentialSum shiftAndScale(const std::vector<ExponentialTerm>& fitted, double x_max_mm,
+                             double* x0_out) {
+  if (!(std::isfinite(x_max_mm) && x_max_mm > 0.0))
+    fail("eq. 3.7 needs x_max > 0 mm, got {}", x_max_mm);
+  if (fitted.empty()) fail("eq. 3.7 needs at least one exponential term");
+  double max_mu = 0.0;
+  for (size_t k = 0; k < fitted.size(); ++k) {
+    const ExponentialTerm& t = fitted[k];
+    if (!(std::isfinite(t.weight) && t.weight > 0.0 && std::isfinite(t.mu_per_mm) &&
+          t.mu_per_mm >= 0.0))
+      fail("eq. 3.7: term {} (weight {}, mu {} /mm) is not a positive weight with mu >= 0", k,
+           t.weight, t.mu_per_mm);
+    max_mu = std::max(max_mu, t.mu_per_mm);
+  }
+  if (!(evaluate(fitted, x_max_mm) < 1.0) || max_mu == 0.0)
+    fail("eq. 3.7: the fitted curve does not fall below 1 before x_max = {} mm (I(x_max) = {})",
+         x_max_mm, evaluate(fitted, x_max_mm));
+  // I is convex and strictly decreasing (some mu > 0), and I(x_max) < 1, so
+  // I(x) = 1 has exactly one root x0 < x_max. Bracket it, then Newton with
+  // bisection safeguarding to full precision.
+  double hi = x_max_mm;  // I(hi) < 1
+  double lo = std::min(0.0, x_max_mm);
+  double step = 1.0 / max_mu;
+  while (!(evaluate(fitted, lo) >= 1.0)) {
+    lo -= step, step *= 2.0;
+    if (!std::isfinite(lo)) fail("eq. 3.7: no x0 with I(x0) = 1 found");
+  }
+  double x0 = 0.5 * (lo + hi);
+  for (int iteration = 0; iteration < 200; ++iteration) {
+    double value = -1.0, slope = 0.0;
+    for (const ExponentialTerm& t : fitted) {
+      const double e = t.weight * std::exp(-t.mu_per_mm * x0);
+      value += e, slope -= t.mu_per_mm * e;
+    }
+    if (value >= 0.0)
+      lo = x0;
+    else
+      hi = x0;
+    double next = slope < 0.0 ? x0 - value / slope : 0.5 * (lo + hi);
+    if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+    if (next == x0 || hi - lo <= 4 * std::numeric_limits<double>::epsilon() * std::abs(x0)) {
+      x0 = next;
+      break;
+    }
+    x0 = next;
+  }
+  const double scale = (x_max_mm - x0) / x_max_mm;
+  std::vector<ExponentialTerm> shifted;
+  double sum = 0.0;
+  for (const ExponentialTerm& t : fitted) {
+    shifted.push_back({t.weight * std::exp(-t.mu_per_mm * x0), t.mu_per_mm * scale});
+    sum += shifted.back().weight;
+  }
+  for (ExponentialTerm& t : shifted) t.weight /= sum;
+  if (x0_out) *x0_out = x0;
+  return ExponentialSum(std::move(shifted),
+                        fmt::format("shifted and scaled by thesis eq. 3.7 (x0 = {:.6g} mm, "
+                                    "x_max = {:.6g} mm)",
+                                    x0, x_max_mm));
 }
 
 ExponentialFitReport exponentialFitResiduals(const ExponentialSum& model,
                                              std::span<const double> path_mm,
                                              std::span<const double> transmission) {
   checkCurve(path_mm, transmission, 1);
-  return residualsOf(model, path_mm, transmission);
+  return residualsOf(model.terms(), path_mm, transmission);
 }
 
 }  // namespace xgauge

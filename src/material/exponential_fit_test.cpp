@@ -72,6 +72,15 @@ double maxCurveDifference(const ExponentialSum& a, const ExponentialSum& b, doub
   return worst;
 }
 
+void expectErrorMentioning(const std::function<void()>& f, const std::string& text) {
+  try {
+    f();
+    ADD_FAILURE() << "no Error thrown; expected one mentioning '" << text << "'";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+  }
+}
+
 TEST(ExponentialFit, RecoversTwoSeparatedTerms) {
   const ExponentialSum truth({{0.6, 0.03}, {0.4, 0.3}});
   const Curve curve = sample(truth);
@@ -205,13 +214,95 @@ TEST(ExponentialFit, DataNotStartingAtZero) {
   EXPECT_LT(report.max_abs_residual, 1e-6);
 }
 
-void expectErrorMentioning(const std::function<void()>& f, const std::string& text) {
-  try {
-    f();
-    ADD_FAILURE() << "no Error thrown; expected one mentioning '" << text << "'";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+// The free-amplitude fit: weights summing to 0.9 (a curve seen from 1.3 mm on).
+TEST(ExponentialFit, FreeAmplitudeRecoversKnownTerms) {
+  const std::vector<ExponentialTerm> truth{{0.45, 0.02}, {0.27, 0.08}, {0.18, 0.4}};
+  Curve curve;
+  for (int i = 0; i <= 400; ++i) {
+    const double x = 0.05 * i;
+    double t = 0.0;
+    for (const auto& term : truth) t += term.weight * std::exp(-term.mu_per_mm * x);
+    curve.path_mm.push_back(x);
+    curve.transmission.push_back(t);
   }
+  ExponentialFitOptions options;
+  options.free_amplitude = true;
+  ExponentialFitReport report;
+  const std::vector<ExponentialTerm> fit =
+      fitExponentialTerms(curve.path_mm, curve.transmission, 3, options, &report);
+  ASSERT_EQ(fit.size(), 3u);
+  for (size_t k = 0; k < 3; ++k) {
+    EXPECT_NEAR(fit[k].weight, truth[k].weight, 1e-5);
+    EXPECT_NEAR(fit[k].mu_per_mm, truth[k].mu_per_mm, 1e-5 * truth[k].mu_per_mm);
+  }
+  EXPECT_LT(report.max_abs_residual, 1e-8);
+  // The constrained fit cannot follow it: I(0) = 1 is forced.
+  ExponentialFitReport constrained;
+  fitExponentialSum(curve.path_mm, curve.transmission, 3, {}, &constrained);
+  EXPECT_GT(constrained.max_abs_residual, 1e-3);
+  // fitExponentialSum refuses a free amplitude (it returns a normalized material).
+  EXPECT_THROW(fitExponentialSum(curve.path_mm, curve.transmission, 3, options), Error);
+}
+
+double evaluateTerms(const std::vector<ExponentialTerm>& terms, double x) {
+  double sum = 0.0;
+  for (const auto& term : terms) sum += term.weight * std::exp(-term.mu_per_mm * x);
+  return sum;
+}
+
+TEST(ShiftAndScale, HoldsEquation37Exactly) {
+  // I(0) < 1, as fitted to a wedge whose thin end was taken for 0 mm.
+  const std::vector<ExponentialTerm> fitted{{0.52, 0.03}, {0.3, 0.11}, {0.15, 0.6}};
+  const double x_max = 20.0;
+  double x0 = 0.0;
+  const ExponentialSum shifted = shiftAndScale(fitted, x_max, &x0);
+  EXPECT_LT(x0, 0.0);
+  EXPECT_NEAR(evaluateTerms(fitted, x0), 1.0, 1e-15);
+  EXPECT_NEAR(shifted.transmission(0.0), 1.0, 1e-15);
+  EXPECT_NEAR(shifted.transmission(x_max), evaluateTerms(fitted, x_max), 1e-15);
+  // In between, I*(x) = I(x (x_max - x0) / x_max + x0).
+  for (double x : {0.7, 3.3, 11.0, 19.9, 35.0})
+    EXPECT_NEAR(shifted.transmission(x), evaluateTerms(fitted, x * (x_max - x0) / x_max + x0),
+                1e-14);
+  // A fit with I(0) > 1 shifts the other way.
+  const std::vector<ExponentialTerm> above{{0.7, 0.05}, {0.4, 0.3}};
+  const ExponentialSum down = shiftAndScale(above, x_max, &x0);
+  EXPECT_GT(x0, 0.0);
+  EXPECT_NEAR(down.transmission(0.0), 1.0, 1e-15);
+  EXPECT_NEAR(down.transmission(x_max), evaluateTerms(above, x_max), 1e-15);
+  // Already normalised: the identity.
+  const ExponentialSum same = shiftAndScale({{0.6, 0.05}, {0.4, 0.2}}, x_max, &x0);
+  EXPECT_NEAR(x0, 0.0, 1e-15);
+  EXPECT_NEAR(same.terms()[1].mu_per_mm, 0.2, 1e-14);
+}
+
+TEST(ShiftAndScale, UndoesAThinEndTakenForZero) {
+  // A wedge from 0.2 to 20 mm whose rows are mapped to 0 .. 20 mm (the thin
+  // end taken for 0): fit with a free amplitude, then eq. 3.7 recovers the
+  // true curve on 0 .. 20 mm.
+  const ExponentialSum truth({{0.5, 0.04}, {0.35, 0.12}, {0.15, 0.5}});
+  const double thin = 0.2, x_max = 20.0;
+  Curve curve;
+  for (int i = 0; i <= 500; ++i) {
+    const double pretend = x_max * i / 500.0;
+    curve.path_mm.push_back(pretend);
+    curve.transmission.push_back(truth.transmission(thin + (x_max - thin) * pretend / x_max));
+  }
+  ExponentialFitOptions options;
+  options.free_amplitude = true;
+  const auto fitted = fitExponentialTerms(curve.path_mm, curve.transmission, 3, options);
+  double x0 = 0.0;
+  const ExponentialSum shifted = shiftAndScale(fitted, x_max, &x0);
+  EXPECT_NEAR(x0, -thin * x_max / (x_max - thin), 1e-4);
+  EXPECT_LT(maxCurveDifference(shifted, truth, x_max), 1e-5);
+}
+
+TEST(ShiftAndScale, RejectsCurvesItCannotShift) {
+  expectErrorMentioning([] { shiftAndScale({{1.2, 0.0}}, 20.0); }, "does not fall below 1");
+  expectErrorMentioning([] { shiftAndScale({{3.0, 0.01}}, 20.0); }, "does not fall below 1");
+  expectErrorMentioning([] { shiftAndScale({{0.5, 0.1}}, 0.0); }, "x_max > 0");
+  expectErrorMentioning([] { shiftAndScale({{-0.5, 0.1}}, 20.0); }, "term 0");
+  expectErrorMentioning([] { shiftAndScale({}, 20.0); }, "at least one");
 }
 
 TEST(ExponentialFit, RejectsBadInput) {

@@ -22,6 +22,7 @@
 #include "xgauge/material/exponential_sum.h"
 
 #include <span>
+#include <vector>
 
 namespace xgauge {
 
@@ -38,6 +39,13 @@ struct ExponentialFitOptions {
     kRelative,
   };
   Weighting weighting = Weighting::kRelative;
+
+  // With a free amplitude the weights are only required to be >= 0; their
+  // sum A = I(0) is fitted as well. That is the model for a curve whose path
+  // axis may be offset, such as a wedge's intensity table whose thin end is
+  // not exactly 0 mm (thesis 3.4a): eq. 3.7 (shiftAndScale below) then moves
+  // the axis so that I(0) = 1. Use fitExponentialTerms for it.
+  bool free_amplitude = false;
 
   // Budget of objective evaluations for each local search (each start and
   // the final polish). Must be >= 100.
@@ -66,6 +74,27 @@ ExponentialSum fitExponentialSum(std::span<const double> path_mm,
                                  std::span<const double> transmission, int terms,
                                  const ExponentialFitOptions& options = {},
                                  ExponentialFitReport* report = nullptr);
+
+// The general fit: with options.free_amplitude the weights' sum is free
+// (and may exceed 1); otherwise it is 1, as in fitExponentialSum. Terms with
+// positive weight, sorted by increasing mu.
+std::vector<ExponentialTerm> fitExponentialTerms(std::span<const double> path_mm,
+                                                 std::span<const double> transmission, int terms,
+                                                 const ExponentialFitOptions& options = {},
+                                                 ExponentialFitReport* report = nullptr);
+
+// Thesis eq. 3.7, the shift and scale of a wedge fit I(x) = sum_k a_k
+// exp(-mu_k x) whose sum of weights need not be 1: find x0 with I(x0) = 1
+// (x0 < 0 when the thin end of the wedge was thicker than the 0 mm it was
+// taken for), then
+//   I*(x) = I(x (x_max - x0) / x_max + x0),
+// so that I*(0) = 1 and I*(x_max) = I(x_max). I* is again an exponential sum:
+// a*_k = a_k exp(-mu_k x0), mu*_k = mu_k (x_max - x0) / x_max, and its weights
+// sum to I(x0) = 1 (renormalised to remove rounding). `x0_out`, if given,
+// receives x0. Throws Error if x_max is not > 0, a term is invalid (a_k <= 0,
+// mu_k < 0) or no x0 < x_max exists (I(x_max) >= 1, or all mu_k = 0).
+ExponentialSum shiftAndScale(const std::vector<ExponentialTerm>& fitted, double x_max_mm,
+                             double* x0_out = nullptr);
 
 // Residuals of any model against a curve (fields rms, max abs and max
 // relative; the rest left 0). Same input checks as fitExponentialSum.

@@ -1,6 +1,7 @@
 // xgauge: measure parts from a few X-ray radiographs.
 // The CLI only parses arguments and calls the library; bad input surfaces
 // here as xgauge::Error, printed once, with a non-zero exit status.
+#include "calibrate_command.h"
 #include "measure_command.h"
 #include "normalize_command.h"
 #include "render_command.h"
@@ -36,6 +37,8 @@ int main(int argc, char** argv) {
   xgauge::cli::addMeasureCommand(app, measure);
   xgauge::cli::MaterialArguments material;
   xgauge::cli::addMaterialCommand(app, material);
+  xgauge::cli::CalibrateArguments calibrate_wedge, calibrate_part;
+  xgauge::cli::addCalibrateCommand(app, calibrate_wedge, calibrate_part);
   xgauge::cli::StudyArguments study;
   xgauge::cli::addStudyCommand(app, study);
   xgauge::cli::SimulateArguments simulate;
@@ -58,6 +61,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("measure")) xgauge::cli::runMeasure(measure);
     if (app.got_subcommand("material")) xgauge::cli::runMaterial(material);
     if (app.got_subcommand("study")) xgauge::cli::runStudyCommand(study);
+    if (app.got_subcommand("calibrate")) xgauge::cli::runCalibrate(app, calibrate_wedge, calibrate_part);
   } catch (const xgauge::Error& e) {
     std::fprintf(stderr, "xgauge: error: %s\n", e.what());
     return 1;

@@ -159,6 +159,32 @@ TEST(GaussianBlur, LargeSigmaFollowsTheGaussianProfile) {
   }
 }
 
+TEST(RemoveScatter, UndoesScatterAndWhiteRegionNormalization) {
+  // A dark block on an open beam, scattered and normalized by a white region
+  // as a measured radiograph is; removeScatter must return the block.
+  Image truth(300, 200, 1.0f);
+  for (int y = 60; y < 150; ++y)
+    for (int x = 120; x < 260; ++x) truth(x, y) = static_cast<float>(0.2 + 0.002 * (x - 120));
+  const PixelRect white{5, 5, 30, 30};
+  Image measured = scatterBlur(truth, 0.139, 80.0);
+  const double c = meanOf(measured, white);
+  ASSERT_LT(c, 0.995);  // the scatter darkens the open beam too
+  for (float& p : measured.pixels()) p = static_cast<float>(static_cast<double>(p) / c);
+  const Image recovered = removeScatter(measured, 0.139, 80.0, white);
+  double worst = 0.0, before = 0.0;
+  for (int y = 0; y < truth.height(); ++y)
+    for (int x = 0; x < truth.width(); ++x) {
+      worst = std::max(worst, std::abs(static_cast<double>(recovered(x, y) - truth(x, y))));
+      before = std::max(before, std::abs(static_cast<double>(measured(x, y) - truth(x, y))));
+    }
+  EXPECT_GT(before, 0.02);
+  EXPECT_LT(worst, 2e-5);
+  // No scatter: a copy. Bad arguments: errors.
+  EXPECT_TRUE(identical(removeScatter(truth, 0.0, 80.0, white), truth));
+  EXPECT_THROW(removeScatter(truth, 0.95, 80.0, white), Error);
+  EXPECT_THROW(removeScatter(truth, 0.1, 80.0, PixelRect{290, 5, 30, 30}), Error);
+}
+
 TEST(ScatterBlur, ShadowsBothSidesOfAnEdge) {
   // The thesis's scatter on its 4096-pixel detector: a part (transmission
   // 0.2) left of column 2048, open beam right of it.
@@ -184,7 +210,6 @@ TEST(ScatterBlur, ShadowsBothSidesOfAnEdge) {
   // The edge itself stays sharp: a jump of (1 - w) * 0.8.
   EXPECT_NEAR(scattered(edge, 0) - scattered(edge - 1, 0), (1.0 - w) * 0.8, 1e-3);
 }
-
 
 }  // namespace
 }  // namespace xgauge

@@ -8,17 +8,19 @@ namespace xgauge {
 
 std::string_view acquisitionName(Acquisition pattern) {
   switch (pattern) {
-    case Acquisition::kFree: return "free";
-    case Acquisition::kTranslated: return "translated";
-    case Acquisition::kRotated: return "rotated";
-    case Acquisition::kKnown: return "known";
+    case Acquisition::kFree:
+      return "free";
+    case Acquisition::kTranslated:
+      return "translated";
+    case Acquisition::kRotated:
+      return "rotated";
+    case Acquisition::kKnown:
+      return "known";
   }
   return "?";
 }
 
-namespace {
-
-PixelRect rect(const ConfigNode& node) {
+PixelRect pixelRectFromConfig(const ConfigNode& node) {
   if (node.size() != 4) node.fail("expected [x, y, width, height]");
   PixelRect r;
   int* fields[] = {&r.x, &r.y, &r.width, &r.height};
@@ -30,6 +32,8 @@ PixelRect rect(const ConfigNode& node) {
   if (r.empty()) node.fail("the region is empty");
   return r;
 }
+
+namespace {
 
 std::array<std::array<double, 2>, 3> ranges(const ConfigNode& node, double limit) {
   if (node.size() != 3) node.fail("expected three [min, max] pairs");
@@ -47,13 +51,21 @@ std::array<std::array<double, 2>, 3> ranges(const ConfigNode& node, double limit
 
 MeasurementJob MeasurementJob::load(const std::filesystem::path& path) {
   const ConfigNode root = ConfigNode::loadFile(path);
+  MeasurementJob job = fromConfig(root, path, true);
+  root.finish();
+  return job;
+}
+
+MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::filesystem::path& path,
+                                          bool needs_material) {
   const auto folder = path.parent_path();
   MeasurementJob job;
   job.file = path;
   job.description = root.get<std::string>("description", "");
   job.part_file = folder / root.get<std::string>("part");
   job.machine_file = folder / root.get<std::string>("machine");
-  job.material_file = folder / root.get<std::string>("material");
+  if (needs_material || root.has("material"))
+    job.material_file = folder / root.get<std::string>("material");
   const PartModel model = PartModel::load(job.part_file);
 
   // Dimensions: free ones, fixed values, starts, bounds; names checked against the model.
@@ -100,8 +112,10 @@ MeasurementJob MeasurementJob::load(const std::filesystem::path& path) {
     const Dimension& d = model.dimensions()[static_cast<size_t>(model.dimensionIndex(name))];
     const auto b = job.bounds.count(name) ? job.bounds[name] : std::array<double, 2>{d.min, d.max};
     if (value < b[0] || value > b[1])
-      root.at("dimensions").at("start").at(name).fail(
-          fmt::format("start {} lies outside the bounds [{}, {}]", value, b[0], b[1]));
+      root.at("dimensions")
+          .at("start")
+          .at(name)
+          .fail(fmt::format("start {} lies outside the bounds [{}, {}]", value, b[0], b[1]));
   }
 
   if (auto scatter = root.find("scatter")) {
@@ -117,21 +131,28 @@ MeasurementJob MeasurementJob::load(const std::filesystem::path& path) {
     RadiographSpec spec;
     spec.name = r.get<std::string>("name");
     for (const auto& other : job.radiographs)
-      if (other.name == spec.name) r.at("name").fail(fmt::format("two radiographs named '{}'", spec.name));
+      if (other.name == spec.name)
+        r.at("name").fail(fmt::format("two radiographs named '{}'", spec.name));
     spec.image = folder / r.get<std::string>("image");
     if (r.has("dark") != r.has("flat")) r.fail("give both dark and flat, or neither");
     if (r.has("dark")) {
       spec.dark = folder / r.get<std::string>("dark");
       spec.flat = folder / r.get<std::string>("flat");
     }
-    spec.white_region = rect(r.at("white_region"));
-    if (auto roi = r.find("roi")) spec.roi = rect(*roi);
+    spec.white_region = pixelRectFromConfig(r.at("white_region"));
+    if (auto roi = r.find("roi")) spec.roi = pixelRectFromConfig(*roi);
     const std::string pattern = r.get<std::string>("pattern", "free");
-    if (pattern == "free") spec.pattern = Acquisition::kFree;
-    else if (pattern == "translated") spec.pattern = Acquisition::kTranslated;
-    else if (pattern == "rotated") spec.pattern = Acquisition::kRotated;
-    else if (pattern == "known") spec.pattern = Acquisition::kKnown;
-    else r.at("pattern").fail(fmt::format("unknown pattern '{}' (known: free, translated, rotated, known)", pattern));
+    if (pattern == "free")
+      spec.pattern = Acquisition::kFree;
+    else if (pattern == "translated")
+      spec.pattern = Acquisition::kTranslated;
+    else if (pattern == "rotated")
+      spec.pattern = Acquisition::kRotated;
+    else if (pattern == "known")
+      spec.pattern = Acquisition::kKnown;
+    else
+      r.at("pattern").fail(
+          fmt::format("unknown pattern '{}' (known: free, translated, rotated, known)", pattern));
     if (spec.pattern == Acquisition::kTranslated || spec.pattern == Acquisition::kRotated) {
       const std::string ref = r.get<std::string>("reference");
       for (size_t k = 0; k < job.radiographs.size(); ++k)
@@ -139,8 +160,10 @@ MeasurementJob MeasurementJob::load(const std::filesystem::path& path) {
       if (spec.reference < 0)
         r.at("reference").fail(fmt::format("no earlier radiograph named '{}'", ref));
       if (spec.pattern == Acquisition::kTranslated) {
-        if (job.radiographs[static_cast<size_t>(spec.reference)].pattern == Acquisition::kTranslated)
-          r.at("reference").fail("the reference of a translated radiograph must not be translated itself");
+        if (job.radiographs[static_cast<size_t>(spec.reference)].pattern ==
+            Acquisition::kTranslated)
+          r.at("reference")
+              .fail("the reference of a translated radiograph must not be translated itself");
         spec.distance_mm = r.at("distance_mm").number(1e-6, 1e4);
       }
     }
@@ -153,11 +176,11 @@ MeasurementJob MeasurementJob::load(const std::filesystem::path& path) {
   job.centre_bounds_mm = ranges(bounds.at("centre_mm"), 1e5);
   job.schedule = root.get<std::string>("schedule", "default");
   if (job.schedule != "default" && job.schedule != "thesis")
-    root.at("schedule").fail(fmt::format("unknown schedule '{}' (known: default, thesis)", job.schedule));
+    root.at("schedule")
+        .fail(fmt::format("unknown schedule '{}' (known: default, thesis)", job.schedule));
   job.loss = root.get<std::string>("loss", "l1");
   if (job.loss != "l1" && job.loss != "l2") root.at("loss").fail("expected \"l1\" or \"l2\"");
   if (auto seed = root.find("seed")) job.seed = static_cast<uint64_t>(seed->number(0, 1e15));
-  root.finish();
 
   // The machine must exist and be valid now, so errors name the job.
   Machine::load(job.machine_file);

@@ -24,7 +24,7 @@ struct StagePlan {
   int level = 0;
   int samples = 1;
   int evaluations = 100;
-  int sampling_points = 0;       // uniform sampling
+  int sampling_points = 0;                     // uniform sampling
   std::vector<double> lower = {}, upper = {};  // optional narrower bounds for `indices`
   std::vector<double> step = {};               // optional initial steps for `indices`
 };
@@ -47,19 +47,24 @@ class Runner {
     Objective objective;
     for (size_t k = 0; k < plan.indices.size(); ++k) {
       const int i = plan.indices[k];
-      objective.lower.push_back(plan.lower.empty() ? model_.lower()[static_cast<size_t>(i)] : plan.lower[k]);
-      objective.upper.push_back(plan.upper.empty() ? model_.upper()[static_cast<size_t>(i)] : plan.upper[k]);
-      objective.start.push_back(std::clamp(theta_[static_cast<size_t>(i)], objective.lower.back(), objective.upper.back()));
+      objective.lower.push_back(plan.lower.empty() ? model_.lower()[static_cast<size_t>(i)]
+                                                   : plan.lower[k]);
+      objective.upper.push_back(plan.upper.empty() ? model_.upper()[static_cast<size_t>(i)]
+                                                   : plan.upper[k]);
+      objective.start.push_back(std::clamp(theta_[static_cast<size_t>(i)], objective.lower.back(),
+                                           objective.upper.back()));
     }
     objective.initial_step = plan.step;
     for (size_t k = 0; k < objective.initial_step.size(); ++k)
-      objective.initial_step[k] = std::min(objective.initial_step[k], 0.5 * (objective.upper[k] - objective.lower[k]));
+      objective.initial_step[k] =
+          std::min(objective.initial_step[k], 0.5 * (objective.upper[k] - objective.lower[k]));
     std::vector<double> trial = theta_;
     ProgressBar progress(plan.name, plan.method == Method::kUniformSampling
                                         ? plan.sampling_points + 1
                                         : plan.evaluations);
     objective.f = [&](std::span<const double> x) {
-      for (size_t k = 0; k < plan.indices.size(); ++k) trial[static_cast<size_t>(plan.indices[k])] = x[k];
+      for (size_t k = 0; k < plan.indices.size(); ++k)
+        trial[static_cast<size_t>(plan.indices[k])] = x[k];
       progress.advance();
       const double value = model_.loss(trial, plan.level, plan.samples, plan.radiographs);
       if (record_) record_->push_back({value, trial});
@@ -73,18 +78,21 @@ class Runner {
     report.loss_before = model_.loss(theta_, plan.level, plan.samples, plan.radiographs);
     OptimizeOptions options;
     options.method = plan.method;
-    options.max_evaluations = plan.method == Method::kUniformSampling ? plan.sampling_points + 1 : plan.evaluations;
+    options.max_evaluations =
+        plan.method == Method::kUniformSampling ? plan.sampling_points + 1 : plan.evaluations;
     options.sampling_points = std::max(1, plan.sampling_points);
     options.seed = seed_;
     options.max_restarts = 2;
     const OptimizeResult r = minimize(objective, options);
     progress.finish();
     if (r.value <= report.loss_before)
-      for (size_t k = 0; k < plan.indices.size(); ++k) theta_[static_cast<size_t>(plan.indices[k])] = r.x[k];
+      for (size_t k = 0; k < plan.indices.size(); ++k)
+        theta_[static_cast<size_t>(plan.indices[k])] = r.x[k];
     report.loss_after = std::min(r.value, report.loss_before);
     report.evaluations = r.evaluations + 1;
     report.termination = r.message;
-    report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    report.seconds =
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     spdlog::info("{}: loss {:.6g} -> {:.6g} in {} evaluations, {:.2f} s ({})", plan.name,
                  report.loss_before, report.loss_after, report.evaluations, report.seconds,
                  report.termination);
@@ -103,18 +111,21 @@ class Runner {
 
 // The `count` best recorded points that differ from each other by more than
 // `separation` (relative to the bounds) in some varied coordinate.
-std::vector<std::vector<double>> distinctBest(std::vector<std::pair<double, std::vector<double>>> record,
-                                              const std::vector<int>& indices, const ForwardModel& model,
-                                              size_t count, double separation) {
-  std::sort(record.begin(), record.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+std::vector<std::vector<double>> distinctBest(
+    std::vector<std::pair<double, std::vector<double>>> record, const std::vector<int>& indices,
+    const ForwardModel& model, size_t count, double separation) {
+  std::sort(record.begin(), record.end(),
+            [](const auto& a, const auto& b) { return a.first < b.first; });
   std::vector<std::vector<double>> out;
   for (const auto& [value, theta] : record) {
     bool distinct = true;
     for (const auto& other : out) {
       double far = 0.0;
       for (int i : indices) {
-        const double span = model.upper()[static_cast<size_t>(i)] - model.lower()[static_cast<size_t>(i)];
-        far = std::max(far, std::abs(theta[static_cast<size_t>(i)] - other[static_cast<size_t>(i)]) / span);
+        const double span =
+            model.upper()[static_cast<size_t>(i)] - model.lower()[static_cast<size_t>(i)];
+        far = std::max(
+            far, std::abs(theta[static_cast<size_t>(i)] - other[static_cast<size_t>(i)]) / span);
       }
       distinct &= far > separation;
     }
@@ -170,7 +181,8 @@ StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
     if (!robust || v.empty()) return;
     std::vector<double> magnitude(v.size());
     for (size_t m = 0; m < v.size(); ++m) magnitude[m] = std::abs(v[m]);
-    std::nth_element(magnitude.begin(), magnitude.begin() + static_cast<ptrdiff_t>(v.size() / 2), magnitude.end());
+    std::nth_element(magnitude.begin(), magnitude.begin() + static_cast<ptrdiff_t>(v.size() / 2),
+                     magnitude.end());
     const double floor = std::max(1e-30, 0.1 * magnitude[v.size() / 2]);
     for (size_t m = 0; m < v.size(); ++m) weight[m] = 1.0 / std::max(std::abs(v[m]), floor);
   };
@@ -198,18 +210,21 @@ StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
       std::vector<double> shifted = theta;
       shifted[i] = theta[i] + h <= model.upper()[i] ? theta[i] + h : theta[i] - h;
       const double step = shifted[i] - theta[i];
-      if (!model.residuals(shifted, level, samples, radiographs, trial_r) || trial_r.size() != r.size()) {
+      if (!model.residuals(shifted, level, samples, radiographs, trial_r) ||
+          trial_r.size() != r.size()) {
         report.termination = "jacobian at an invalid point";
         iteration = max_iterations;
         break;
       }
       ++report.evaluations;
       for (size_t m = 0; m < r.size(); ++m)
-        jacobian(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(k)) = (trial_r[m] - r[m]) / step;
+        jacobian(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(k)) =
+            (trial_r[m] - r[m]) / step;
     }
     if (iteration >= max_iterations) break;
     const Eigen::Map<const Eigen::VectorXd> residual(r.data(), static_cast<Eigen::Index>(r.size()));
-    const Eigen::Map<const Eigen::VectorXd> w(weight.data(), static_cast<Eigen::Index>(weight.size()));
+    const Eigen::Map<const Eigen::VectorXd> w(weight.data(),
+                                              static_cast<Eigen::Index>(weight.size()));
     const Eigen::MatrixXd weighted = w.asDiagonal() * jacobian;
     const Eigen::MatrixXd normal = jacobian.transpose() * weighted;
     const Eigen::VectorXd gradient = weighted.transpose() * residual;
@@ -221,10 +236,12 @@ StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
       std::vector<double> candidate = theta;
       for (size_t k = 0; k < n; ++k) {
         const auto i = static_cast<size_t>(indices[k]);
-        candidate[i] = std::clamp(theta[i] + delta(static_cast<Eigen::Index>(k)), model.lower()[i], model.upper()[i]);
+        candidate[i] = std::clamp(theta[i] + delta(static_cast<Eigen::Index>(k)), model.lower()[i],
+                                  model.upper()[i]);
       }
       ++report.evaluations;
-      if (model.residuals(candidate, level, samples, radiographs, trial_r) && cost(trial_r) < current) {
+      if (model.residuals(candidate, level, samples, radiographs, trial_r) &&
+          cost(trial_r) < current) {
         const double previous = current;
         theta = candidate, r = trial_r, current = cost(r);
         lambda = std::max(1e-9, lambda / 3.0);
@@ -252,7 +269,9 @@ StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
   return report;
 }
 
-void planSchedule(ForwardModel& model, std::vector<double>& theta, Runner& runner, bool thesis) {
+void planSchedule(ForwardModel& model, std::vector<double>& theta, Runner& runner, bool thesis,
+                  const MeasureOptions& options) {
+  const bool search_poses = options.search_poses;
   const Machine& machine = model.machine();
   const double d = machine.source_detector_distance_mm;
   const int coarse = model.levelForWidth(256);
@@ -260,7 +279,7 @@ void planSchedule(ForwardModel& model, std::vector<double>& theta, Runner& runne
   const auto& rads = model.radiographs();
 
   // 1-2. Each radiograph's pose alone, the part at its starting dimensions.
-  for (int r = 0; r < static_cast<int>(rads.size()); ++r) {
+  for (int r = 0; search_poses && r < static_cast<int>(rads.size()); ++r) {
     const RadiographSpec& spec = rads[static_cast<size_t>(r)].spec;
     const std::vector<int> pose = model.poseIndices(r);
     if (pose.empty()) continue;
@@ -271,7 +290,8 @@ void planSchedule(ForwardModel& model, std::vector<double>& theta, Runner& runne
       // sampling the whole sphere (thesis).
       const int q = spec.reference;
       if (thesis) {
-        runner.run({spec.name + ": axis search", Method::kUniformSampling, pose, only, coarse, 1, 0, 5000});
+        runner.run({spec.name + ": axis search", Method::kUniformSampling, pose, only, coarse, 1, 0,
+                    5000});
       } else {
         const Vec2 shift = shadowCentroid(rads[static_cast<size_t>(r)], coarse) -
                            shadowCentroid(rads[static_cast<size_t>(q)], coarse);
@@ -296,38 +316,75 @@ void planSchedule(ForwardModel& model, std::vector<double>& theta, Runner& runne
         }
         theta = best_theta;
       }
-      runner.run({spec.name + ": axis", thesis ? Method::kNelderMead : Method::kBobyqa, pose, only,
-                  thesis ? coarse : coarse, 1, thesis ? 5000 : 120, 0, {}, {}, {5.0, 5.0}});
+      runner.run({spec.name + ": axis",
+                  thesis ? Method::kNelderMead : Method::kBobyqa,
+                  pose,
+                  only,
+                  thesis ? coarse : coarse,
+                  1,
+                  thesis ? 5000 : 120,
+                  0,
+                  {},
+                  {},
+                  {5.0, 5.0}});
       if (!thesis)
-        runner.run({spec.name + ": axis, finer", Method::kBobyqa, pose, only, medium, 1, 80, 0, {}, {}, {1.0, 1.0}});
+        runner.run({spec.name + ": axis, finer",
+                    Method::kBobyqa,
+                    pose,
+                    only,
+                    medium,
+                    1,
+                    80,
+                    0,
+                    {},
+                    {},
+                    {1.0, 1.0}});
       continue;
     }
     // free and rotated: 3-DOF global search of (ry, x, y), then 6-DOF.
     const std::vector<int> search{p0 + 1, p0 + 3, p0 + 4};
-    StagePlan global{spec.name + ": pose search", Method::kUniformSampling, search, only, coarse, 1, 0,
-                     thesis ? 5000 : 150};
+    StagePlan global{
+        spec.name + ": pose search", Method::kUniformSampling, search, only, coarse, 1, 0,
+        thesis ? 5000 : 150};
     if (!thesis) {
       // Around the shadow's centroid seen at the middle depth.
       const Vec2 c = shadowCentroid(rads[static_cast<size_t>(r)], coarse);
       const Vec3 p = machine.detectorPoint(c.x(), c.y());
       const double z = theta[static_cast<size_t>(p0) + 5];
       const double lambda = 1.0 - z / d;
-      theta[static_cast<size_t>(p0) + 3] = std::clamp(lambda * p.x(), model.lower()[static_cast<size_t>(p0) + 3], model.upper()[static_cast<size_t>(p0) + 3]);
-      theta[static_cast<size_t>(p0) + 4] = std::clamp(lambda * p.y(), model.lower()[static_cast<size_t>(p0) + 4], model.upper()[static_cast<size_t>(p0) + 4]);
+      theta[static_cast<size_t>(p0) + 3] =
+          std::clamp(lambda * p.x(), model.lower()[static_cast<size_t>(p0) + 3],
+                     model.upper()[static_cast<size_t>(p0) + 3]);
+      theta[static_cast<size_t>(p0) + 4] =
+          std::clamp(lambda * p.y(), model.lower()[static_cast<size_t>(p0) + 4],
+                     model.upper()[static_cast<size_t>(p0) + 4]);
       // The centroid of the absorption is near the projected centre: search a
       // window of a quarter of the part's size around it.
       const double window = 0.25 * model.partSizeMm();
       for (int k : {1, 3, 4}) {
-        const double lo = model.lower()[static_cast<size_t>(p0 + k)], hi = model.upper()[static_cast<size_t>(p0 + k)];
+        const double lo = model.lower()[static_cast<size_t>(p0 + k)],
+                     hi = model.upper()[static_cast<size_t>(p0 + k)];
         const double half = k == 1 ? 0.5 * (hi - lo) : window;
-        global.lower.push_back(std::max(lo, k == 1 ? lo : theta[static_cast<size_t>(p0 + k)] - half));
-        global.upper.push_back(std::min(hi, k == 1 ? hi : theta[static_cast<size_t>(p0 + k)] + half));
+        global.lower.push_back(
+            std::max(lo, k == 1 ? lo : theta[static_cast<size_t>(p0 + k)] - half));
+        global.upper.push_back(
+            std::min(hi, k == 1 ? hi : theta[static_cast<size_t>(p0 + k)] + half));
       }
     }
     const std::vector<double> steps{2.0, 5.0, 2.0, 1.0, 1.0, 10.0};
     if (thesis) {
       runner.run(global);
-      runner.run({spec.name + ": pose", Method::kNelderMead, pose, only, coarse, 1, 5000, 0, {}, {}, steps});
+      runner.run({spec.name + ": pose",
+                  Method::kNelderMead,
+                  pose,
+                  only,
+                  coarse,
+                  1,
+                  5000,
+                  0,
+                  {},
+                  {},
+                  steps});
     } else {
       // Multi-start: refine the best few distinct samples, keep the best.
       std::vector<std::pair<double, std::vector<double>>> record;
@@ -339,14 +396,32 @@ void planSchedule(ForwardModel& model, std::vector<double>& theta, Runner& runne
       const auto starts = distinctBest(record, search, model, 4, 0.05);
       for (size_t k = 0; k < starts.size(); ++k) {
         theta = starts[k];
-        const double loss = runner.run({fmt::format("{}: pose from start {}", spec.name, k + 1), Method::kBobyqa,
-                                        pose, only, coarse, 1, 150, 0, {}, {}, steps});
+        const double loss = runner.run({fmt::format("{}: pose from start {}", spec.name, k + 1),
+                                        Method::kBobyqa,
+                                        pose,
+                                        only,
+                                        coarse,
+                                        1,
+                                        150,
+                                        0,
+                                        {},
+                                        {},
+                                        steps});
         if (loss < best) best = loss, best_theta = theta;
       }
       theta = best_theta;
     }
     if (!thesis)
-      runner.run({spec.name + ": pose, finer", Method::kBobyqa, pose, only, medium, 1, 200, 0, {}, {},
+      runner.run({spec.name + ": pose, finer",
+                  Method::kBobyqa,
+                  pose,
+                  only,
+                  medium,
+                  1,
+                  200,
+                  0,
+                  {},
+                  {},
                   {0.5, 1.0, 0.5, 0.2, 0.2, 2.0}});
   }
 
@@ -355,6 +430,7 @@ void planSchedule(ForwardModel& model, std::vector<double>& theta, Runner& runne
   std::vector<int> every_radiograph = range(0, static_cast<int>(rads.size()));
   for (int r : every_radiograph)
     for (int i : model.poseIndices(r)) all.push_back(i);
+  for (int i : model.materialIndices()) all.push_back(i);
   // First steps by kind of parameter, in physical units, shrinking level by
   // level: what remains uncertain after the previous stage.
   auto steps = [&](double scale) {
@@ -363,32 +439,56 @@ void planSchedule(ForwardModel& model, std::vector<double>& theta, Runner& runne
       const auto index = static_cast<size_t>(i);
       double step = 0.0;
       switch (model.kind(i)) {
-        case ForwardModel::Kind::kDimension: step = 0.3; break;  // mm
-        case ForwardModel::Kind::kRotation: step = 1.0; break;   // deg
-        case ForwardModel::Kind::kPosition: step = 1.0; break;   // mm
-        case ForwardModel::Kind::kAxis: step = 1.0; break;       // deg
+        case ForwardModel::Kind::kDimension:
+          step = 0.3;
+          break;  // mm
+        case ForwardModel::Kind::kRotation:
+          step = 1.0;
+          break;  // deg
+        case ForwardModel::Kind::kPosition:
+          step = 1.0;
+          break;  // mm
+        case ForwardModel::Kind::kAxis:
+          step = 1.0;
+          break;  // deg
+        case ForwardModel::Kind::kMaterial:
+          step = 0.02;
+          break;  // fraction, or 1/mm
       }
       s.push_back(std::min(scale * step, 0.5 * (model.upper()[index] - model.lower()[index])));
     }
     return s;
   };
   if (thesis) {
-    runner.run({"joint", Method::kNelderMead, all, every_radiograph, 0, 1, 5000, 0, {}, {}, steps(1.0)});
+    runner.run(
+        {"joint", Method::kNelderMead, all, every_radiograph, 0, 1, 5000, 0, {}, {}, steps(1.0)});
     return;
   }
   // Coarse to fine, up to 2048 px wide: beyond that the loss is dominated by
   // pixel noise and a 4096^2 stage costs more than it changes (measured:
   // 16 s for a loss change of 1e-4 relative). Where the images are small,
   // several steps share a level and act as restarts with smaller steps.
-  struct Step { int width; int evaluations; double scale; };
+  struct Step {
+    int width;
+    int evaluations;
+    double scale;
+  };
   // Each stage searches a window of ten first steps around the estimate so far:
   // the optimiser works in coordinates scaled to its bounds, and bounds of
   // similar sensitivity keep its trust region well shaped.
-  int finest = 0;
+  int finest = model.levelForWidth(2048);
   for (const Step s : {Step{512, 1200, 1.0}, Step{1024, 700, 0.3}, Step{2048, 300, 0.1}}) {
+    if (!options.joint_search) break;
     const int level = model.levelForWidth(s.width);
-    StagePlan plan{fmt::format("joint, {} px", rads.front().levels[static_cast<size_t>(level)].width()),
-                   Method::kBobyqa, all, every_radiograph, level, 2, s.evaluations, 0};
+    StagePlan plan{
+        fmt::format("joint, {} px", rads.front().levels[static_cast<size_t>(level)].width()),
+        Method::kBobyqa,
+        all,
+        every_radiograph,
+        level,
+        2,
+        s.evaluations,
+        0};
     plan.step = steps(s.scale);
     for (size_t k = 0; k < all.size(); ++k) {
       const auto i = static_cast<size_t>(all[k]);
@@ -406,27 +506,34 @@ void planSchedule(ForwardModel& model, std::vector<double>& theta, Runner& runne
 }  // namespace
 
 MeasurementResult measure(const MeasurementJob& job) {
-  const auto start = std::chrono::steady_clock::now();
   ForwardModel model(job);
+  return measure(model, model.start());
+}
+
+MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
+                          const MeasureOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  const MeasurementJob& job = model.job();
+  XG_CHECK(theta.size() == static_cast<size_t>(model.size()), "theta has the wrong size");
   MeasurementResult result;
-  std::vector<double> theta = model.start();
   Runner runner(model, theta, result, job.seed);
-  planSchedule(model, theta, runner, job.schedule == "thesis");
+  planSchedule(model, theta, runner, job.schedule == "thesis", options);
 
   // Final figures at full size.
   result.theta = theta;
   const auto& dims = model.part().dimensions();
   const auto free = model.freeDimensionIndices();
   for (size_t i = 0; i < dims.size(); ++i)
-    result.dimensions.push_back({dims[i].name, theta[i],
-                                 std::find(free.begin(), free.end(), static_cast<int>(i)) != free.end(),
-                                 dims[i].unit});
+    result.dimensions.push_back(
+        {dims[i].name, theta[i],
+         std::find(free.begin(), free.end(), static_cast<int>(i)) != free.end(), dims[i].unit});
   for (int r = 0; r < static_cast<int>(model.radiographs().size()); ++r) {
     const int only[] = {r};
     const double loss = model.loss(theta, 0, 2, only);
     result.total_loss += loss;
     const auto& spec = model.radiographs()[static_cast<size_t>(r)].spec;
-    result.radiographs.push_back({spec.name, std::string(acquisitionName(spec.pattern)), model.pose(theta, r), loss});
+    result.radiographs.push_back(
+        {spec.name, std::string(acquisitionName(spec.pattern)), model.pose(theta, r), loss});
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;

@@ -31,12 +31,15 @@ PixelRect rectAtLevelOutward(const PixelRect& rect, int level, const Image& imag
 // 0.9, as a bounding box grown by 10 % of its size plus 8 pixels.
 PixelRect automaticRoi(const std::vector<Image>& levels, const RadiographSpec& spec) {
   int level = 0;
-  while (level + 1 < static_cast<int>(levels.size()) && levels[static_cast<size_t>(level)].width() > 256) ++level;
+  while (level + 1 < static_cast<int>(levels.size()) &&
+         levels[static_cast<size_t>(level)].width() > 256)
+    ++level;
   const Image& coarse = levels[static_cast<size_t>(level)];
   int x0 = coarse.width(), y0 = coarse.height(), x1 = -1, y1 = -1;
   for (int y = 0; y < coarse.height(); ++y)
     for (int x = 0; x < coarse.width(); ++x)
-      if (coarse(x, y) < 0.9f) x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+      if (coarse(x, y) < 0.9f)
+        x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
   if (x1 < 0)
     fail("{}: no part shadow found (no pixel below 0.9 of the open beam); give its roi",
          spec.image.string());
@@ -47,7 +50,9 @@ PixelRect automaticRoi(const std::vector<Image>& levels, const RadiographSpec& s
       .intersect(levels.front().rect());
 }
 
-PreparedRadiograph prepare(const RadiographSpec& spec, const Machine& machine) {
+}  // namespace
+
+PreparedRadiograph prepareRadiograph(const RadiographSpec& spec, const Machine& machine) {
   PreparedRadiograph out;
   out.spec = spec;
   Image image = readTiff(spec.image);
@@ -89,6 +94,8 @@ PreparedRadiograph prepare(const RadiographSpec& spec, const Machine& machine) {
   return out;
 }
 
+namespace {
+
 Vec3 axisFromAngles(double azimuth_deg, double elevation_deg) {
   const double az = azimuth_deg * kDegToRad, el = elevation_deg * kDegToRad;
   return {std::cos(el) * std::cos(az), std::sin(el), std::cos(el) * std::sin(az)};
@@ -96,7 +103,23 @@ Vec3 axisFromAngles(double azimuth_deg, double elevation_deg) {
 
 }  // namespace
 
+double ScatterEstimate::at(double u_level, double v_level) const {
+  // Bilinear in coarse pixel-centre units.
+  const double u = u_level * ratio - 0.5, v = v_level * ratio - 0.5;
+  const double x = std::clamp(u, 0.0, blurred.width() - 1.0);
+  const double y = std::clamp(v, 0.0, blurred.height() - 1.0);
+  const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
+  const int x1 = std::min(x0 + 1, blurred.width() - 1), y1 = std::min(y0 + 1, blurred.height() - 1);
+  const double fx = x - x0, fy = y - y0;
+  auto value = [&](int i, int j) { return static_cast<double>(blurred(i, j)); };
+  return (1 - fy) * ((1 - fx) * value(x0, y0) + fx * value(x1, y0)) +
+         fy * ((1 - fx) * value(x0, y1) + fx * value(x1, y1));
+}
+
 ForwardModel::ForwardModel(const MeasurementJob& job)
+    : ForwardModel(job, ExponentialSum::load(job.material_file)) {}
+
+ForwardModel::ForwardModel(const MeasurementJob& job, const ExponentialSum& material)
     : job_(job), part_(PartModel::load(job.part_file)), machine_(Machine::load(job.machine_file)) {
   // The part: its reference centre and the dimension parameters.
   const std::vector<double> nominal = part_.nominalValues();
@@ -109,7 +132,8 @@ ForwardModel::ForwardModel(const MeasurementJob& job)
     const bool free = std::find(job.free_dimensions.begin(), job.free_dimensions.end(), d.name) !=
                       job.free_dimensions.end();
     double start = d.nominal;
-    if (auto f = job.fixed_dimensions.find(d.name); f != job.fixed_dimensions.end()) start = f->second;
+    if (auto f = job.fixed_dimensions.find(d.name); f != job.fixed_dimensions.end())
+      start = f->second;
     if (auto s = job.start.find(d.name); s != job.start.end()) start = s->second;
     double lo = start, hi = start;
     if (free) {
@@ -128,14 +152,14 @@ ForwardModel::ForwardModel(const MeasurementJob& job)
   part_.validate(start_);
 
   // The material: tabulated over the longest chord the part can have.
-  const ExponentialSum material = ExponentialSum::load(job.material_file);
   double longest = 0.0;
   for (size_t i = 0; i < dims.size(); ++i) longest = std::max(longest, dims[i].max);
-  transmission_ = TransmissionTable::forMaterial(material, 4.0 * box.diagonal() + 2.0 * longest);
+  max_path_mm_ = 4.0 * box.diagonal() + 2.0 * longest;
+  setMaterial(material);
 
   // The radiographs and their pose parameters.
   for (const RadiographSpec& spec : job.radiographs) {
-    radiographs_.push_back(prepare(spec, machine_));
+    radiographs_.push_back(prepareRadiograph(spec, machine_));
     pose_offset_.push_back(size());
     switch (spec.pattern) {
       case Acquisition::kFree:
@@ -159,17 +183,82 @@ ForwardModel::ForwardModel(const MeasurementJob& job)
         start_.insert(start_.end(), {0.0, 0.0});
         kinds_.insert(kinds_.end(), {Kind::kAxis, Kind::kAxis});
         break;
-      case Acquisition::kKnown: break;
+      case Acquisition::kKnown:
+        break;
     }
   }
   for (size_t i = 1; i < radiographs_.size(); ++i)
     if (radiographs_[i].levels.size() != radiographs_[0].levels.size())
-      fail("radiographs {} and {} differ in size", radiographs_[0].spec.name, radiographs_[i].spec.name);
+      fail("radiographs {} and {} differ in size", radiographs_[0].spec.name,
+           radiographs_[i].spec.name);
+}
+
+void ForwardModel::setMaterial(const ExponentialSum& material) {
+  material_ = std::make_shared<ExponentialSum>(material);
+  transmission_ = TransmissionTable::forMaterial(material, max_path_mm_);
+}
+
+void ForwardModel::freeMaterial(const ExponentialSum& material, std::vector<double>& theta) {
+  XG_CHECK(material_offset_ < 0, "the material is free already");
+  XG_CHECK(theta.size() == lower_.size(), "theta has the wrong size");
+  const auto& terms = material.terms();
+  material_offset_ = size();
+  material_terms_ = static_cast<int>(terms.size());
+  double rest = 1.0;
+  for (size_t k = 0; k + 1 < terms.size(); ++k) {
+    const double u = rest > 0.0 ? std::clamp(terms[k].weight / rest, 0.0, 1.0) : 0.0;
+    rest -= terms[k].weight;
+    lower_.push_back(0.0), upper_.push_back(1.0), start_.push_back(u), theta.push_back(u);
+    kinds_.push_back(Kind::kMaterial);
+  }
+  for (const ExponentialTerm& term : terms) {
+    const double mu = std::clamp(term.mu_per_mm, 0.0, 10.0);
+    lower_.push_back(0.0), upper_.push_back(10.0), start_.push_back(mu), theta.push_back(mu);
+    kinds_.push_back(Kind::kMaterial);
+  }
+  setMaterial(materialOf(theta));
+}
+
+std::vector<int> ForwardModel::materialIndices() const {
+  std::vector<int> out;
+  for (int i = std::max(0, material_offset_); material_offset_ >= 0 && i < size(); ++i)
+    out.push_back(i);
+  return out;
+}
+
+ExponentialSum ForwardModel::materialOf(std::span<const double> theta) const {
+  if (material_offset_ < 0) return *material_;
+  const int m = material_terms_;
+  const double* u = theta.data() + material_offset_;
+  const double* mu = u + (m - 1);
+  std::vector<ExponentialTerm> terms;
+  double rest = 1.0;
+  for (int k = 0; k < m; ++k) {
+    const double a = k + 1 < m ? rest * std::clamp(u[k], 0.0, 1.0) : rest;
+    rest -= a;
+    if (a > 0.0) terms.push_back({a, std::max(0.0, mu[k])});
+  }
+  double sum = 0.0;
+  for (const auto& t : terms) sum += t.weight;
+  for (auto& t : terms) t.weight /= sum;
+  return ExponentialSum(std::move(terms), "free in the fit");
+}
+
+void ForwardModel::useMaterialOf(std::span<const double> theta) {
+  if (material_offset_ < 0) return;
+  const ExponentialSum wanted = materialOf(theta);
+  const auto& now = material_->terms();
+  bool same = now.size() == wanted.terms().size();
+  for (size_t k = 0; same && k < now.size(); ++k)
+    same = now[k].weight == wanted.terms()[k].weight &&
+           now[k].mu_per_mm == wanted.terms()[k].mu_per_mm;
+  if (!same) setMaterial(wanted);
 }
 
 int ForwardModel::levelForWidth(int min_width) const {
   int level = levels() - 1;
-  while (level > 0 && radiographs_.front().levels[static_cast<size_t>(level)].width() < min_width) --level;
+  while (level > 0 && radiographs_.front().levels[static_cast<size_t>(level)].width() < min_width)
+    --level;
   return level;
 }
 
@@ -198,7 +287,8 @@ Pose ForwardModel::pose(std::span<const double> theta, int radiograph) const {
       out.translation_mm += spec.distance_mm * axisFromAngles(p[0], p[1]);
       return out;
     }
-    case Acquisition::kKnown: return spec.known_pose;
+    case Acquisition::kKnown:
+      return spec.known_pose;
   }
   return {};
 }
@@ -216,54 +306,71 @@ Machine ForwardModel::machineAt(int level) const {
   return m;
 }
 
-Image ForwardModel::simulate(std::span<const double> theta, int radiograph, int level,
-                             int samples, const PixelRect& region) {
+WorldMesh ForwardModel::posedMesh(std::span<const double> theta, int radiograph) {
   part_.evaluate(theta.first(part_.dimensions().size()), part_vertices_);
-  const Pose p = pose(theta, radiograph);
-  poseVertices(p, part_vertices_, world_vertices_);
-  const WorldMesh mesh{world_vertices_, part_.triangles()};
-  const Machine m = machineAt(level);
+  poseVertices(pose(theta, radiograph), part_vertices_, world_vertices_);
+  return WorldMesh{world_vertices_, part_.triangles()};
+}
+
+Image ForwardModel::pathLengths(std::span<const double> theta, int radiograph, int level,
+                                const PixelRect& region) {
+  useMaterialOf(theta);
+  const WorldMesh mesh = posedMesh(theta, radiograph);
   RenderOptions options;
-  options.samples_per_axis = samples;
   options.region = region;
   Image out;
-  renderIntensity(m, mesh, transmission_, options, out);
-  if (!job_.scatter.enabled()) return out;
+  renderPathLength(machineAt(level), mesh, options, out);
+  return out;
+}
 
-  // Scintillator scatter: I' = (1 - w) I + w G(I), with G from a coarse
-  // render of the whole detector (the kernel is hundreds of pixels wide), and
-  // the same white-region normalization as the measured image.
+ScatterEstimate ForwardModel::scatter(std::span<const double> theta, int radiograph, int level) {
+  XG_CHECK(job_.scatter.enabled(), "the job models no scatter");
+  useMaterialOf(theta);
+  // The kernel is hundreds of pixels wide: a coarse render of the whole
+  // detector carries all of G(I).
+  const WorldMesh mesh = posedMesh(theta, radiograph);
   const int coarse_level = std::max(level, levelForWidth(128));
   const Machine mc = machineAt(coarse_level);
   RenderOptions coarse_options;
   renderIntensity(mc, mesh, transmission_, coarse_options, coarse_);
-  const Image blurred =
-      gaussianBlur(coarse_, job_.scatter.sigma_mm / mc.pitch_u_mm);
-  const double w = job_.scatter.weight;
-  const double ratio = static_cast<double>(1 << level) / static_cast<double>(1 << coarse_level);
-  auto sample = [&](double u, double v) {  // bilinear, u, v in coarse pixel-centre units
-    const double x = std::clamp(u, 0.0, blurred.width() - 1.0), y = std::clamp(v, 0.0, blurred.height() - 1.0);
-    const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-    const int x1 = std::min(x0 + 1, blurred.width() - 1), y1 = std::min(y0 + 1, blurred.height() - 1);
-    const double fx = x - x0, fy = y - y0;
-    auto at = [&](int i, int j) { return static_cast<double>(blurred(i, j)); };
-    return (1 - fy) * ((1 - fx) * at(x0, y0) + fx * at(x1, y0)) +
-           fy * ((1 - fx) * at(x0, y1) + fx * at(x1, y1));
-  };
-  // The model's open-beam level in the white region.
+  ScatterEstimate out;
+  out.blurred = gaussianBlur(coarse_, job_.scatter.sigma_mm / mc.pitch_u_mm);
+  // The model's open-beam level in the white region (full-size coordinates).
   const PixelRect white = radiographs_[static_cast<size_t>(radiograph)].spec.white_region;
   const double full_to_coarse = 1.0 / static_cast<double>(1 << coarse_level);
+  out.ratio = full_to_coarse;
   double white_sum = 0.0;
   constexpr int kGrid = 8;
   for (int j = 0; j < kGrid; ++j)
     for (int i = 0; i < kGrid; ++i)
-      white_sum += sample((white.x + (i + 0.5) * white.width / kGrid) * full_to_coarse - 0.5,
-                          (white.y + (j + 0.5) * white.height / kGrid) * full_to_coarse - 0.5);
-  const double open = (1.0 - w) + w * white_sum / (kGrid * kGrid);
+      white_sum += out.at(white.x + (i + 0.5) * white.width / kGrid,
+                          white.y + (j + 0.5) * white.height / kGrid);
+  const double w = job_.scatter.weight;
+  out.open = (1.0 - w) + w * white_sum / (kGrid * kGrid);
+  out.ratio = static_cast<double>(1 << level) / static_cast<double>(1 << coarse_level);
+  return out;
+}
+
+Image ForwardModel::simulate(std::span<const double> theta, int radiograph, int level, int samples,
+                             const PixelRect& region) {
+  useMaterialOf(theta);
+  const WorldMesh mesh = posedMesh(theta, radiograph);
+  RenderOptions options;
+  options.samples_per_axis = samples;
+  options.region = region;
+  Image out;
+  renderIntensity(machineAt(level), mesh, transmission_, options, out);
+  if (!job_.scatter.enabled()) return out;
+
+  // Scintillator scatter, I' = (1 - w) I + w G(I), with the same
+  // white-region normalization as the measured image.
+  const ScatterEstimate spread = scatter(theta, radiograph, level);
+  const double w = job_.scatter.weight;
   for (int y = 0; y < out.height(); ++y)
     for (int x = 0; x < out.width(); ++x) {
-      const double g = sample((region.x + x + 0.5) * ratio - 0.5, (region.y + y + 0.5) * ratio - 0.5);
-      out(x, y) = static_cast<float>(((1.0 - w) * static_cast<double>(out(x, y)) + w * g) / open);
+      const double g = spread.at(region.x + x + 0.5, region.y + y + 0.5);
+      out(x, y) =
+          static_cast<float>(((1.0 - w) * static_cast<double>(out(x, y)) + w * g) / spread.open);
     }
   return out;
 }
@@ -273,6 +380,7 @@ bool ForwardModel::forEachSimulated(
     const std::function<void(const PreparedRadiograph&, const PixelRect&, const Image&)>& use) {
   try {
     part_.validate(theta.first(part_.dimensions().size()));
+    useMaterialOf(theta);
     for (int r : radiographs) {
       const PreparedRadiograph& rad = radiographs_[static_cast<size_t>(r)];
       const PixelRect roi = rad.rois[static_cast<size_t>(level)];
@@ -291,15 +399,16 @@ bool ForwardModel::forEachSimulated(
 bool ForwardModel::residuals(std::span<const double> theta, int level, int samples,
                              std::span<const int> radiographs, std::vector<double>& out) {
   out.clear();
-  return forEachSimulated(theta, level, samples, radiographs,
-                          [&](const PreparedRadiograph& rad, const PixelRect& roi, const Image& simulated) {
-                            const Image& measured = rad.levels[static_cast<size_t>(level)];
-                            const double scale = 1.0 / std::sqrt(static_cast<double>(roi.area()));
-                            for (int y = 0; y < roi.height; ++y)
-                              for (int x = 0; x < roi.width; ++x)
-                                out.push_back(scale * (static_cast<double>(simulated(x, y)) -
-                                                       static_cast<double>(measured(roi.x + x, roi.y + y))));
-                          });
+  return forEachSimulated(
+      theta, level, samples, radiographs,
+      [&](const PreparedRadiograph& rad, const PixelRect& roi, const Image& simulated) {
+        const Image& measured = rad.levels[static_cast<size_t>(level)];
+        const double scale = 1.0 / std::sqrt(static_cast<double>(roi.area()));
+        for (int y = 0; y < roi.height; ++y)
+          for (int x = 0; x < roi.width; ++x)
+            out.push_back(scale * (static_cast<double>(simulated(x, y)) -
+                                   static_cast<double>(measured(roi.x + x, roi.y + y))));
+      });
 }
 
 double ForwardModel::loss(std::span<const double> theta, int level, int samples,

@@ -57,4 +57,19 @@ Image gaussianBlur(Image image, double sigma_px);
 // Throws Error if weight is outside [0, 1] or sigma_px as gaussianBlur.
 Image scatterBlur(Image image, double weight, double sigma_px);
 
+// Undoes the scatter on a radiograph normalized by the mean of an open-beam
+// `white` region: finds the scatter-free I with
+//   n c = (1 - w) I + w G(I, sigma),   c = (1 - w) + w mean over white of G(I),
+// where n is the normalized image (the white region's mean, in which the
+// scatter shows too, was divided out as c). Fixed-point iteration
+//   I <- (n c - w G(I)) / (1 - w),
+// which contracts by about w / (1 - w) per step (0.16 for w = 0.139), from
+// I = n; `iterations` steps (12 leave about 1e-9 of the scatter). Used where
+// intensities are read directly from a radiograph (wedge calibration) rather
+// than compared with a simulation that adds the scatter.
+// Throws Error if weight is outside [0, 0.9], the white region lies outside
+// the image, or sigma_px as gaussianBlur.
+Image removeScatter(const Image& normalized, double weight, double sigma_px, const PixelRect& white,
+                    int iterations = 12);
+
 }  // namespace xgauge

@@ -34,6 +34,7 @@
 //   seed               optional, default 1
 #pragma once
 
+#include "xgauge/core/config.h"
 #include "xgauge/core/transform.h"
 #include "xgauge/image/image.h"
 
@@ -69,10 +70,10 @@ struct MeasurementJob {
   std::filesystem::path file;
   std::string description;
   std::filesystem::path part_file, machine_file, material_file;
-  std::vector<std::string> free_dimensions;              // in model order
-  std::map<std::string, double> fixed_dimensions;        // overrides of nominal
-  std::map<std::string, double> start;                   // starting values
-  std::map<std::string, std::array<double, 2>> bounds;   // explicit bounds
+  std::vector<std::string> free_dimensions;             // in model order
+  std::map<std::string, double> fixed_dimensions;       // overrides of nominal
+  std::map<std::string, double> start;                  // starting values
+  std::map<std::string, std::array<double, 2>> bounds;  // explicit bounds
   ScatterModel scatter;
   std::vector<RadiographSpec> radiographs;
   std::array<std::array<double, 2>, 3> rotation_bounds_deg{};
@@ -83,7 +84,15 @@ struct MeasurementJob {
 
   // Reads and validates a job file (Error naming file and key).
   static MeasurementJob load(const std::filesystem::path& path);
+  // The same from a parsed file whose other keys the caller reads (a
+  // calibration job adds its own); does not call finish(). Without
+  // `needs_material` the material key is optional (material_file empty).
+  static MeasurementJob fromConfig(const ConfigNode& root, const std::filesystem::path& path,
+                                   bool needs_material);
 };
+
+// [x, y, width, height] in whole pixels, not empty (Error at the node otherwise).
+PixelRect pixelRectFromConfig(const ConfigNode& node);
 
 std::string_view acquisitionName(Acquisition pattern);
 

@@ -27,8 +27,8 @@ namespace xgauge {
 struct StageReport {
   std::string name;
   std::string method;
-  int level = 0;          // pyramid level (0 = full size)
-  int samples = 1;        // area samples per axis
+  int level = 0;    // pyramid level (0 = full size)
+  int samples = 1;  // area samples per axis
   int evaluations = 0;
   double seconds = 0.0;
   double loss_before = 0.0;  // the stage's objective (for the reweighted least-squares
@@ -62,6 +62,20 @@ struct MeasurementResult {
 
 // Runs the job's schedule. Shows a progress bar per stage.
 MeasurementResult measure(const MeasurementJob& job);
+
+class ForwardModel;
+struct MeasureOptions {
+  // false: skip each radiograph's own pose search and only refine every free
+  // parameter together from `theta` (a calibration's later rounds).
+  bool search_poses = true;
+  // false: skip the derivative-free joint stages too; only the final
+  // (reweighted) least-squares stage runs.
+  bool joint_search = true;
+};
+// The same on a model built by the caller, from `theta` (model.start() for a
+// fresh measurement).
+MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
+                          const MeasureOptions& options = {});
 
 // Writes result.json, the final simulated radiographs and the difference
 // images (float TIFF and diverging-colour PNG) into `folder`, atomically.

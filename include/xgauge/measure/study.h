@@ -28,9 +28,9 @@ struct StudyOptions {
   std::filesystem::path dataset;   // folder with truth.json
   std::filesystem::path settings;  // study settings (JSON)
   std::string combinations = "pairs";
-  int limit = 0;                   // 0 = all runs; else the first `limit`
+  int limit = 0;  // 0 = all runs; else the first `limit`
   std::filesystem::path output;
-  bool images = false;             // also write simulated and difference images per run
+  bool images = false;  // also write simulated and difference images per run
 };
 
 struct StudyRun {

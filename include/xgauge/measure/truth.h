@@ -17,8 +17,8 @@ namespace xgauge {
 struct TruthShot {
   std::string name;
   std::filesystem::path file;
-  std::string pattern;        // "free", "translated", "rotated"
-  double distance_mm = 0.0;   // translated: from the reference
+  std::string pattern;       // "free", "translated", "rotated"
+  double distance_mm = 0.0;  // translated: from the reference
   Pose pose;
 };
 

@@ -1,0 +1,78 @@
+#include "calibrate_command.h"
+
+#include "xgauge/calibrate/part.h"
+#include "xgauge/calibrate/wedge.h"
+#include "xgauge/measure/truth.h"
+
+#include <spdlog/spdlog.h>
+
+#include <cstdio>
+
+namespace xgauge::cli {
+
+namespace {
+
+void addArguments(CLI::App* cmd, CalibrateArguments& args) {
+  cmd->add_option("job", args.job, "Calibration job (JSON)")->required();
+  cmd->add_option("-o,--output", args.output,
+                  "Output folder: material.json, calibration.json, calibration.png")
+      ->required();
+  cmd->add_option("--truth", args.truth,
+                  "A virtual lab's truth.json: also report the deviation from its true curve");
+}
+
+TrueCurve trueCurve(const std::string& truth_file) {
+  if (truth_file.empty()) return {};
+  const DatasetTruth truth = DatasetTruth::load(truth_file);
+  return {truth.path_mm, truth.transmission};
+}
+
+void printMaterial(const ExponentialSum& material, const std::string& output) {
+  std::string text = "I(x) =";
+  for (size_t k = 0; k < material.terms().size(); ++k)
+    text += fmt::format("{} {:.5f} exp(-{:.5f} x)", k ? " +" : "", material.terms()[k].weight,
+                        material.terms()[k].mu_per_mm);
+  std::printf("%s\nwrote %s/material.json, calibration.json, calibration.png\n", text.c_str(),
+              output.c_str());
+}
+
+}  // namespace
+
+void addCalibrateCommand(CLI::App& app, CalibrateArguments& wedge, CalibrateArguments& part) {
+  CLI::App* cmd =
+      app.add_subcommand("calibrate", "Calibrate the material curve I(x) from radiographs");
+  cmd->require_subcommand(1);
+  addArguments(cmd->add_subcommand("wedge", "From one radiograph of a wedge (thesis 3.4a)"), wedge);
+  addArguments(
+      cmd->add_subcommand("part", "From radiographs of a part of known dimensions (thesis 3.4b)"),
+      part);
+}
+
+void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
+                  const CalibrateArguments& part) {
+  const CLI::App* cmd = app.get_subcommand("calibrate");
+  if (cmd->got_subcommand("wedge")) {
+    const WedgeCalibrationJob job = WedgeCalibrationJob::load(wedge.job);
+    const TrueCurve truth = trueCurve(wedge.truth);
+    const WedgeCalibration result = calibrateFromWedge(job);
+    std::printf("ramp: columns %d..%d, thin end at row %.2f, thick end at row %.2f (%s)\n",
+                result.ramp.column_begin, result.ramp.column_end - 1, result.ramp.thin_row,
+                result.ramp.thick_row, result.ramp.automatic_rows ? "found" : "given");
+    std::printf("%-6s %12s %12s %12s\n", "terms", "rms", "max |r|", "max |r|/I");
+    for (const TermsFit& f : result.fit.fits)
+      std::printf("%-6d %12.3e %12.3e %12.3e%s\n", f.terms, f.report.rms_residual,
+                  f.report.max_abs_residual, f.report.max_relative_residual,
+                  &f == &result.fit.best() ? "  <- chosen" : "");
+    std::printf("eq. 3.7: x0 = %.4f mm, x_max = %.4f mm\n", result.x0_mm, result.x_max_mm);
+    writeWedgeCalibration(job, result, truth, wedge.output);
+    printMaterial(result.material, wedge.output);
+  } else {
+    const PartCalibrationJob job = PartCalibrationJob::load(part.job);
+    const TrueCurve truth = trueCurve(part.truth);
+    const PartCalibration result = calibrateFromPart(job);
+    writePartCalibration(job, result, truth, part.output);
+    printMaterial(result.material, part.output);
+  }
+}
+
+}  // namespace xgauge::cli

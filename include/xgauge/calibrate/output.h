@@ -1,0 +1,32 @@
+// What every calibration writes: the material file, its figures as JSON and
+// a plot of the data with the fitted curve and its residual (the thesis's
+// Figure 5.8).
+#pragma once
+
+#include "xgauge/calibrate/curve.h"
+#include "xgauge/material/exponential_sum.h"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace xgauge {
+
+struct CalibrationPlot {
+  std::string title;
+  std::string data_label;
+  std::vector<double> path_mm, transmission;  // the data, on the final curve's path axis
+  double x_max_mm = 0.0;                      // the calibrated range
+};
+
+// Into `folder` (created if needed), each file atomically: calibration.png,
+// calibration.json (`figures` plus the residual of the material against the
+// data and, with a true curve, the largest deviation from it over 0 .. x_max)
+// and, last, material.json, so that a failure leaves no material file.
+void writeCalibrationOutputs(const std::filesystem::path& folder, const ExponentialSum& material,
+                             nlohmann::json figures, const CalibrationPlot& plot,
+                             const TrueCurve& true_curve);
+
+}  // namespace xgauge

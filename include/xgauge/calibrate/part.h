@@ -1,0 +1,86 @@
+// Material calibration from radiographs of a part whose dimensions are known
+// (thesis 3.4b): the measurement problem with the material free.
+//
+//   1. Initial material (thesis eq. 3.8): one exponential through I(0) = 1
+//      and the mean intensity I1 of a uniform region of known path x1,
+//      mu1 = -ln(I1) / x1.
+//   2. Poses: the measurement schedule (measure/measure.h) with the known
+//      dimensions fixed, finds every radiograph's pose with that material.
+//   3. Material: with the poses fixed, every pixel of every roi whose path is
+//      smooth around it (not on an edge, where the pixel's mean intensity is
+//      not the intensity of its centre's path) gives a pair (path, intensity);
+//      the intensity has the modelled scatter taken out, w G(I) computed from
+//      the current model, as the forward model adds it. The pairs are binned
+//      by path (bins of 1/300 of the longest path, at least 20 pixels each)
+//      into a table, to which M = 1 .. terms exponentials are fitted
+//      (curve.h; weights summing to 1, so I(0) = 1).
+//   4. Everything together: poses, the material's weights and rates (and any
+//      free dimension) by the measurement's final least-squares stage on the
+//      per-pixel residuals at the 2048 px level (thesis: "in the last
+//      hierarchical step, we only optimize the pose and the coefficients").
+//      Steps 3 and 4 fix what an alternation would leave coupled: a pose
+//      found with the wrong material has absorbed part of the error (a
+//      rotation changes the paths), and only a joint step removes it.
+//      Step 4 repeats, up to `rounds` times, until the material changes by
+//      less than 2e-4 in intensity.
+//
+// Job JSON: a measurement job (measure/job.h) without "material", with the
+// known dimensions under "dimensions": {"fixed": {...}} (any left free are
+// measured as well), and
+//   calibration  {"terms": M (1 to 4, default 3),
+//                 "rounds": 1 to 10 (default 4),
+//                 "initial": {"radiograph": name, "region": [x, y, w, h],
+//                             "path_mm": x1}}
+#pragma once
+
+#include "xgauge/calibrate/curve.h"
+#include "xgauge/material/exponential_sum.h"
+#include "xgauge/measure/job.h"
+#include "xgauge/measure/measure.h"
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace xgauge {
+
+struct PartCalibrationJob {
+  MeasurementJob measurement;  // material_file empty
+  int terms = 3;
+  int rounds = 4;
+  int initial_radiograph = 0;  // index into measurement.radiographs
+  PixelRect initial_region;
+  double initial_path_mm = 0.0;
+
+  static PartCalibrationJob load(const std::filesystem::path& path);
+};
+
+struct PartCalibrationRound {
+  ExponentialSum material{{{1.0, 0.0}}};
+  ExponentialFitReport report;
+  double change = 0.0;     // largest intensity change from the previous material
+  double pose_loss = 0.0;  // the measurement's total loss before this material
+  int64_t pixels = 0;      // pixel pairs used
+};
+
+struct PartCalibration {
+  double initial_intensity = 0.0;  // I1
+  double initial_mu_per_mm = 0.0;  // eq. 3.8
+  std::vector<PartCalibrationRound> rounds;
+  CurveFit fit;                               // of the last round
+  std::vector<double> path_mm, transmission;  // the last round's table
+  double max_path_mm = 0.0;                   // longest path in the table
+  ExponentialSum material{{{1.0, 0.0}}};
+  MeasurementResult measurement;  // the last pose fit
+  double seconds = 0.0;
+};
+
+PartCalibration calibrateFromPart(const PartCalibrationJob& job);
+
+// material.json, calibration.json, calibration.png (curve.h, output.h), and
+// the last pose fit's result.json with its simulated and difference images
+// (measure/measure.h) in `folder`/poses.
+void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& result,
+                          const TrueCurve& true_curve, const std::filesystem::path& folder);
+
+}  // namespace xgauge

@@ -1,0 +1,90 @@
+// Material calibration from one radiograph of a wedge (thesis 3.4a), done
+// automatically:
+//   1. normalize (dark, flat, white region) and remove the detector's
+//      scintillator scatter (image/blur.h removeScatter), so that the curve is
+//      the scatter-free I(x) that the forward model pairs with its own scatter;
+//   2. find the ramp's columns and its thin and thick end rows (ramp.h);
+//   3. map every pixel of the band to its path length through the wedge by
+//      the machine geometry, not by a straight line in rows. Both ends of the
+//      ramp lie on the wedge's back face (the face towards the detector), so
+//      their distance on the detector, |Y_thin - Y_thick|, is the ramp length
+//      H times that face's magnification M = D / (D - z_back): that gives the
+//      face's height z_back above the detector and where the ends are. The
+//      floor of the ramp is the plane through the thin end on the back face
+//      and the thick end x_max above the back face; each pixel's ray crosses
+//      the back face and that plane, and the distance between is its path.
+//      The thin end is taken for 0 mm, as in the thesis; eq. 3.7 corrects it;
+//   4. average every row of the band into a table (mean path, mean
+//      intensity), leaving out `margin_rows` rows at each end;
+//   5. fit M = 1 .. max_terms exponentials with a free amplitude and pick the
+//      smallest M that fits within the noise (curve.h);
+//   6. shift and scale by eq. 3.7 so that I(0) = 1 and I(x_max) is kept, with
+//      x_max the path at the thick end (the wedge's full thickness, seen along
+//      the slightly oblique ray there).
+//
+// Job JSON (paths relative to the job file; unknown keys are errors):
+//   description        free text
+//   machine            machine file (xray/machine.h)
+//   radiograph         {"image", "dark", "flat" (optional, both or neither),
+//                       "white_region": [x, y, w, h]}
+//   wedge              {"max_thickness_mm": x_max, "ramp_length_mm": H}: the full
+//                      thickness at the thick end and the ramp's length along
+//                      the detector's rows (thick end to thin end)
+//   scatter            optional {"weight": w, "sigma_mm": s} (measure/job.h)
+//   ramp               optional overrides: {"columns": [begin, end],
+//                      "rows": [thin end, thick end]} (continuous row coordinates)
+//   max_terms          optional, 1 to 4 (default 4)
+//   margin_rows        optional, rows left out at each end (default 4)
+#pragma once
+
+#include "xgauge/calibrate/curve.h"
+#include "xgauge/calibrate/ramp.h"
+#include "xgauge/material/exponential_sum.h"
+#include "xgauge/measure/job.h"
+
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace xgauge {
+
+struct WedgeCalibrationJob {
+  std::filesystem::path file;
+  std::string description;
+  std::filesystem::path machine_file;
+  RadiographSpec radiograph;
+  double max_thickness_mm = 0.0;
+  double ramp_length_mm = 0.0;
+  ScatterModel scatter;
+  RampOptions ramp;
+  int max_terms = 4;
+  int margin_rows = 4;
+
+  static WedgeCalibrationJob load(const std::filesystem::path& path);
+};
+
+struct WedgeCalibration {
+  RampDetection ramp;
+  // Geometry from the ramp's ends.
+  double magnification = 0.0;   // of the back face
+  double back_face_z_mm = 0.0;  // height of the back face above the detector
+  double x_max_mm = 0.0;        // path at the thick end
+  // The intensity table, thin end first.
+  std::vector<double> rows, path_mm, transmission;
+  CurveFit fit;
+  double x0_mm = 0.0;  // eq. 3.7
+  ExponentialSum material{{{1.0, 0.0}}};
+  double seconds = 0.0;
+};
+
+WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job);
+
+// material.json, calibration.json (every figure and the table) and
+// calibration.png (data, fitted curve and residual) into `folder`, each
+// written atomically. With `true_curve` (a simulated dataset's transmission
+// table), the figures also give the largest deviation from it over 0 .. x_max.
+void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& result,
+                           const TrueCurve& true_curve, const std::filesystem::path& folder);
+
+}  // namespace xgauge

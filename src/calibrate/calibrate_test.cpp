@@ -1,0 +1,270 @@
+// Calibration on synthetic data with a known answer: ramps whose rows are
+// known, a wedge and a cuboid rendered with a known material.
+#include "xgauge/calibrate/part.h"
+#include "xgauge/calibrate/ramp.h"
+#include "xgauge/calibrate/wedge.h"
+
+#include "xgauge/core/progress.h"
+#include "xgauge/geometry/part_model.h"
+#include "xgauge/image/blur.h"
+#include "xgauge/image/stats.h"
+#include "xgauge/image/tiff.h"
+#include "xgauge/xray/renderer.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+namespace xgauge {
+namespace {
+
+namespace fs = std::filesystem;
+const std::string kRoot = XGAUGE_SOURCE_DIR;
+
+class Calibrate : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    setProgressEnabled(false);
+    dir_ = fs::temp_directory_path() /
+           ("xgauge_calibrate_" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  fs::path dir_;
+};
+
+double curve(double x) { return 0.6 * std::exp(-0.05 * x) + 0.4 * std::exp(-0.3 * x); }
+
+// A 300 x 600 open-beam image with a wedge whose ramp runs from 0.2 mm at row
+// `thin` to 20 mm at row `thick` (pixel edges) in columns 60..239, walls of
+// 20 mm beside it, and (`rise_rows` > 0) a perspective-like fall of the path
+// from 20 mm to 0 over that many rows beyond the thick end; noise sigma 0.005.
+Image syntheticRamp(int thin, int thick, int rise_rows, uint64_t seed) {
+  Image image(300, 600, 1.0f);
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, 0.005);
+  const int step = thick > thin ? 1 : -1;
+  for (int y = 0; y < image.height(); ++y) {
+    // Path along the ramp, by the row's centre.
+    const double c = y + 0.5;
+    const double s = (c - thin) / (thick - thin);  // 0 at the thin end, 1 at the thick end
+    double path = 0.0;
+    if (s >= 0.0 && s <= 1.0) path = 0.2 + 19.8 * s;
+    const double beyond = (c - thick) * step;  // rows past the thick end
+    if (rise_rows > 0 && beyond > 0.0 && beyond < rise_rows)
+      path = 20.0 * (1.0 - beyond / rise_rows);
+    const bool in_block =
+        (s >= 0.0 && s <= 1.0) || (rise_rows > 0 && beyond > 0.0 && beyond < rise_rows);
+    for (int x = 0; x < image.width(); ++x) {
+      double value = 1.0;
+      if (x >= 60 && x < 240)
+        value = curve(path);
+      else if (in_block && ((x >= 40 && x < 60) || (x >= 240 && x < 260)))
+        value = curve(20.0);
+      image(x, y) = static_cast<float>(value + noise(rng));
+    }
+  }
+  return image;
+}
+
+TEST(RampDetection, FindsTheRowsOfASyntheticRampWithinTwoRows) {
+  struct Case {
+    int thin, thick, rise;
+  };
+  for (const Case c :
+       {Case{100, 500, 0}, Case{500, 100, 0}, Case{80, 470, 60}, Case{520, 130, 60}}) {
+    SCOPED_TRACE(::testing::Message()
+                 << "thin " << c.thin << " thick " << c.thick << " rise " << c.rise);
+    const RampDetection ramp =
+        detectRamp(syntheticRamp(c.thin, c.thick, c.rise, 7), {}, "synthetic");
+    EXPECT_NEAR(ramp.thin_row, c.thin, 2.0);
+    EXPECT_NEAR(ramp.thick_row, c.thick, 2.0);
+    EXPECT_EQ(ramp.thinEndOnTop(), c.thin < c.thick);
+    // The band lies inside the ramp's columns and is most of them.
+    EXPECT_GE(ramp.column_begin, 60);
+    EXPECT_LE(ramp.column_end, 240);
+    EXPECT_GT(ramp.column_end - ramp.column_begin, 100);
+    // Row noise: 0.005 over the band's width.
+    const double expected = 0.005 / std::sqrt(ramp.column_end - ramp.column_begin);
+    EXPECT_NEAR(ramp.row_noise, expected, 0.3 * expected);
+  }
+}
+
+TEST(RampDetection, OverridesAreUsedAsGiven) {
+  RampOptions options;
+  options.columns = std::array<int, 2>{100, 200};
+  options.rows = std::array<double, 2>{101.5, 498.0};
+  const RampDetection ramp = detectRamp(syntheticRamp(100, 500, 0, 3), options, "synthetic");
+  EXPECT_EQ(ramp.column_begin, 100);
+  EXPECT_EQ(ramp.column_end, 200);
+  EXPECT_EQ(ramp.thin_row, 101.5);
+  EXPECT_EQ(ramp.thick_row, 498.0);
+  EXPECT_FALSE(ramp.automatic_rows);
+  // Columns alone: the rows are still found.
+  options.rows.reset();
+  const RampDetection found = detectRamp(syntheticRamp(100, 500, 0, 3), options, "synthetic");
+  EXPECT_NEAR(found.thin_row, 100.0, 2.0);
+  EXPECT_NEAR(found.thick_row, 500.0, 2.0);
+}
+
+void expectErrorMentioning(const std::function<void()>& f, const std::string& text) {
+  try {
+    f();
+    ADD_FAILURE() << "no Error thrown; expected one mentioning '" << text << "'";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
+  }
+}
+
+TEST(RampDetection, RejectsImagesWithoutAWholeRamp) {
+  // Open beam only.
+  expectErrorMentioning([] { detectRamp(Image(300, 600, 1.0f), {}, "open.tif"); }, "no ramp found");
+  // A uniform block: a shadow that does not darken along the columns.
+  Image block(300, 600, 1.0f);
+  for (int y = 100; y < 500; ++y)
+    for (int x = 60; x < 240; ++x) block(x, y) = 0.3f;
+  expectErrorMentioning([&] { detectRamp(block, {}, "block.tif"); }, "no ramp found");
+  // A ramp cut by the image's top or bottom edge does not span the thickness range.
+  expectErrorMentioning([] { detectRamp(syntheticRamp(-50, 500, 0, 1), {}, "cut.tif"); },
+                        "runs off the image");
+  expectErrorMentioning([] { detectRamp(syntheticRamp(100, 620, 0, 1), {}, "cut.tif"); },
+                        "runs off the image");
+  // Overrides outside the image.
+  RampOptions bad;
+  bad.columns = std::array<int, 2>{250, 400};
+  expectErrorMentioning([&] { detectRamp(syntheticRamp(100, 500, 0, 1), bad, "x.tif"); },
+                        "outside the image");
+}
+
+// A machine whose 512 x 512 detector of 0.8 mm pixels sees the whole wedge
+// block (90 mm) at magnification 3.85.
+Machine wedgeMachine() {
+  Machine machine;
+  machine.source_detector_distance_mm = 1000.0;
+  machine.columns = machine.rows = 512;
+  machine.pitch_u_mm = machine.pitch_v_mm = 0.8;
+  machine.cx_px = 256.3, machine.cy_px = 255.1;
+  return machine;
+}
+
+TEST_F(Calibrate, WedgeGivesBackTheMaterialItWasRenderedWith) {
+  const Machine machine = wedgeMachine();
+  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+  const ExponentialSum truth({{0.55, 0.045}, {0.35, 0.13}, {0.1, 0.5}});
+  const PartModel part = PartModel::load(kRoot + "/parts/wedge_block.json");
+  const TriangleMesh mesh = part.mesh(part.nominalValues());
+  const Pose pose = Pose::fromEulerDeg(Vec3(0, 0, 0), Vec3(0.0, -45.0, 740.0));
+  std::vector<Vec3> world;
+  poseVertices(pose, mesh.vertices, world);
+  RenderOptions options;
+  options.samples_per_axis = 3;
+  Image image;
+  renderIntensity(machine, {world, mesh.triangles}, TransmissionTable::forMaterial(truth, 200.0),
+                  options, image);
+  // The detector's scatter, and the white-region normalization a measured image gets.
+  const double w = 0.139, sigma_mm = 50.0;
+  image = scatterBlur(std::move(image), w, sigma_mm / machine.pitch_u_mm);
+  const PixelRect white{8, 8, 40, 40};
+  const double open = meanOf(image, white);
+  for (float& p : image.pixels()) p = static_cast<float>(static_cast<double>(p) / open);
+  writeTiff(dir_ / "wedge.tif", image, TiffFormat::kFloat32);
+  std::ofstream(dir_ / "job.json") << R"({
+    "machine": "machine.json",
+    "radiograph": {"image": "wedge.tif", "white_region": [8, 8, 40, 40]},
+    "wedge": {"max_thickness_mm": 20.0, "ramp_length_mm": 90.0},
+    "scatter": {"weight": 0.139, "sigma_mm": 50.0}})";
+  const WedgeCalibrationJob job = WedgeCalibrationJob::load(dir_ / "job.json");
+  const WedgeCalibration result = calibrateFromWedge(job);
+
+  // The ramp's ends: the back face's edges at part y = 90 (thin) and 0 (thick).
+  const double thin = machine.project(pose.apply(Vec3(0, 90, 0))).y();
+  const double thick = machine.project(pose.apply(Vec3(0, 0, 0))).y();
+  EXPECT_NEAR(result.ramp.thin_row, thin, 2.0);
+  EXPECT_NEAR(result.ramp.thick_row, thick, 2.0);
+  EXPECT_NEAR(result.back_face_z_mm, 740.0, 10.0);
+  // The thin end is 0.2 mm: eq. 3.7 moves the axis by about that much.
+  EXPECT_LT(result.x0_mm, -0.1);
+  EXPECT_GT(result.x0_mm, -0.3);
+  const CurveDeviation dev =
+      curveDeviation([&](double x) { return result.material.transmission(x); },
+                     [&](double x) { return truth.transmission(x); }, 20.0);
+  EXPECT_LT(dev.max_abs, 2e-3) << "at " << dev.at_mm << " mm";
+  EXPECT_DOUBLE_EQ(result.material.transmission(0.0), 1.0);
+
+  writeWedgeCalibration(job, result, {}, dir_ / "out");
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "material.json"));
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "calibration.png"));
+  const ExponentialSum reread = ExponentialSum::load(dir_ / "out" / "material.json");
+  EXPECT_EQ(reread.transmission(7.0), result.material.transmission(7.0));
+
+  // An open-beam radiograph: a clear error and no material file.
+  writeTiff(dir_ / "wedge.tif", Image(512, 512, 1.0f), TiffFormat::kFloat32);
+  expectErrorMentioning([&] { calibrateFromWedge(job); }, "no ramp found");
+}
+
+TEST_F(Calibrate, KnownCuboidGivesBackTheMaterialItWasRenderedWith) {
+  Machine machine;
+  machine.source_detector_distance_mm = 1000.0;
+  machine.columns = machine.rows = 320;
+  machine.pitch_u_mm = machine.pitch_v_mm = 0.4;
+  machine.cx_px = 161.3, machine.cy_px = 158.9;
+  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+  const ExponentialSum truth({{0.6, 0.03}, {0.3, 0.09}, {0.1, 0.4}});
+  const PartModel part = PartModel::load(kRoot + "/parts/cuboid.json");
+  const std::map<std::string, double> dims{{"size_x", 20.0}, {"size_y", 30.0}, {"size_z", 12.0}};
+  const TriangleMesh mesh = part.mesh(part.values(dims));
+  RenderOptions options;
+  options.samples_per_axis = 2;
+  std::vector<Vec3> world;
+  const auto table = TransmissionTable::forMaterial(truth, 200.0);
+  const std::pair<const char*, Pose> shots[] = {
+      {"a", Pose::fromEulerDeg(Vec3(3, 25, 0), Vec3(-2.0, 1.0, 700.0))},
+      {"b", Pose::fromEulerDeg(Vec3(-2, 62, 4), Vec3(3.0, -1.0, 705.0))}};
+  for (const auto& [name, pose] : shots) {
+    poseVertices(pose, mesh.vertices, world);
+    Image image;
+    renderIntensity(machine, {world, mesh.triangles}, table, options, image);
+    writeTiff(dir_ / (std::string(name) + ".tif"), image, TiffFormat::kFloat32);
+  }
+  // The initial region: the centre of the first shadow, whose path the
+  // rendered path length gives (a user would take it from the drawing).
+  Image path;
+  poseVertices(shots[0].second, mesh.vertices, world);
+  RenderOptions centre;
+  centre.region = PixelRect{150, 150, 1, 1};
+  renderPathLength(machine, {world, mesh.triangles}, centre, path);
+  std::ofstream(dir_ / "job.json") << R"({
+    "part": ")" + kRoot + R"(/parts/cuboid.json",
+    "machine": "machine.json",
+    "dimensions": {"fixed": {"size_x": 20.0, "size_y": 30.0, "size_z": 12.0}},
+    "radiographs": [
+      {"name": "a", "image": "a.tif", "white_region": [4, 4, 30, 30], "pattern": "free"},
+      {"name": "b", "image": "b.tif", "white_region": [4, 4, 30, 30], "pattern": "rotated", "reference": "a"}],
+    "pose_bounds": {"rotation_deg": [[-8, 8], [0, 90], [-8, 8]], "centre_mm": [[-20, 20], [-20, 20], [680, 720]]},
+    "loss": "l2",
+    "calibration": {"terms": 3, "rounds": 3,
+                    "initial": {"radiograph": "a", "region": [149, 149, 3, 3], "path_mm": )" +
+                                          std::to_string(path(0, 0)) + R"(}}})";
+  const PartCalibrationJob job = PartCalibrationJob::load(dir_ / "job.json");
+  const PartCalibration result = calibrateFromPart(job);
+  EXPECT_GT(result.initial_mu_per_mm, 0.03);
+  ASSERT_FALSE(result.rounds.empty());
+  const CurveDeviation dev =
+      curveDeviation([&](double x) { return result.material.transmission(x); },
+                     [&](double x) { return truth.transmission(x); }, result.max_path_mm);
+  EXPECT_LT(dev.max_abs, 2e-3) << "at " << dev.at_mm << " mm";
+  EXPECT_GT(result.max_path_mm, 15.0);
+  writePartCalibration(job, result, {}, dir_ / "out");
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "material.json"));
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "poses" / "result.json"));
+}
+
+}  // namespace
+}  // namespace xgauge

@@ -1,0 +1,100 @@
+#include "xgauge/calibrate/curve.h"
+
+#include "xgauge/core/error.h"
+
+#include <algorithm>
+#include <cmath>
+#include <functional>
+
+namespace xgauge {
+
+CurveFit fitCurve(std::span<const double> path_mm, std::span<const double> transmission,
+                  int max_terms, double noise, bool free_amplitude, const std::string& what) {
+  if (max_terms < 1 || max_terms > 4) fail("{}: max_terms must be 1 to 4, got {}", what, max_terms);
+  CurveFit out;
+  ExponentialFitOptions options;
+  options.free_amplitude = free_amplitude;
+  for (int m = 1; m <= max_terms; ++m) {
+    TermsFit fit;
+    fit.terms = m;
+    try {
+      fit.fitted = fitExponentialTerms(path_mm, transmission, m, options, &fit.report);
+    } catch (const Error& e) {
+      fail("{}: {}", what, e.message());
+    }
+    out.fits.push_back(std::move(fit));
+  }
+  double best_rms = HUGE_VAL;
+  for (const TermsFit& f : out.fits) best_rms = std::min(best_rms, f.report.rms_residual);
+  bool within_noise = false;
+  for (size_t k = 0; k < out.fits.size() && !within_noise; ++k)
+    if (out.fits[k].report.rms_residual <= 1.25 * noise) out.chosen = k, within_noise = true;
+  if (within_noise) {
+    out.choice =
+        fmt::format("smallest M whose rms residual ({:.3g}) is within 1.25 x the noise ({:.3g})",
+                    out.best().report.rms_residual, noise);
+  } else {
+    for (size_t k = 0; k < out.fits.size(); ++k)
+      if (out.fits[k].report.rms_residual <= 1.1 * best_rms) {
+        out.chosen = k;
+        break;
+      }
+    out.choice = fmt::format(
+        "no M fits within the noise ({:.3g}); smallest M within 10 % of the best rms residual "
+        "({:.3g})",
+        noise, best_rms);
+  }
+  const ExponentialFitReport& r = out.best().report;
+  if (!(r.max_relative_residual <= 0.05))
+    fail(
+        "{}: the exponential fit does not converge to the data: with {} terms its residual reaches "
+        "{:.1f} % "
+        "of the intensity (rms {:.3g}); check the ramp rows, the white region and that the table "
+        "falls "
+        "with the path",
+        what, out.best().terms, 100.0 * r.max_relative_residual, r.rms_residual);
+  return out;
+}
+
+nlohmann::json toJson(const CurveFit& fit) {
+  nlohmann::json fits = nlohmann::json::array();
+  for (const TermsFit& f : fit.fits) {
+    nlohmann::json terms = nlohmann::json::array();
+    double sum = 0.0;
+    for (const ExponentialTerm& t : f.fitted) {
+      terms.push_back({{"weight", t.weight}, {"mu_per_mm", t.mu_per_mm}});
+      sum += t.weight;
+    }
+    fits.push_back({{"terms_asked", f.terms},
+                    {"terms_used", f.report.terms_used},
+                    {"rms_residual", f.report.rms_residual},
+                    {"max_abs_residual", f.report.max_abs_residual},
+                    {"max_relative_residual", f.report.max_relative_residual},
+                    {"weight_sum", sum},
+                    {"terms", terms}});
+  }
+  return {{"fits", fits}, {"chosen_terms", fit.best().terms}, {"choice", fit.choice}};
+}
+
+double TrueCurve::operator()(double x) const {
+  XG_CHECK(path_mm.size() >= 2 && path_mm.size() == transmission.size(), "bad true curve");
+  const auto it = std::upper_bound(path_mm.begin(), path_mm.end(), x);
+  const size_t i =
+      std::clamp<size_t>(static_cast<size_t>(it - path_mm.begin()), 1, path_mm.size() - 1);
+  const double t = (x - path_mm[i - 1]) / (path_mm[i] - path_mm[i - 1]);
+  return transmission[i - 1] + t * (transmission[i] - transmission[i - 1]);
+}
+
+CurveDeviation curveDeviation(const std::function<double(double)>& a,
+                              const std::function<double(double)>& b, double max_path_mm) {
+  CurveDeviation out;
+  const int steps = static_cast<int>(std::ceil(max_path_mm / 0.01));
+  for (int i = 0; i <= steps; ++i) {
+    const double x = std::min(max_path_mm, 0.01 * i);
+    const double d = std::abs(a(x) - b(x));
+    if (d > out.max_abs) out.max_abs = d, out.at_mm = x;
+  }
+  return out;
+}
+
+}  // namespace xgauge

@@ -1,0 +1,252 @@
+#include "xgauge/calibrate/part.h"
+
+#include "xgauge/calibrate/output.h"
+#include "xgauge/core/config.h"
+#include "xgauge/image/stats.h"
+#include "xgauge/measure/model.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+
+namespace xgauge {
+
+namespace {
+
+constexpr int kBins = 300;
+constexpr int64_t kMinBinPixels = 20;
+constexpr double kSmoothPathMm = 0.01;  // largest second difference of the path around a pixel
+constexpr double kSettled = 2e-4;       // material change that ends the rounds
+
+// The (path, scatter-free intensity) table of the current poses, binned by path.
+struct Table {
+  std::vector<double> path_mm, transmission;
+  double noise = 0.0;  // median standard error of a bin's mean
+  int64_t pixels = 0;
+};
+
+Table tabulate(ForwardModel& model, const std::vector<double>& theta) {
+  const int level = model.levelForWidth(2048);
+  const double w = model.job().scatter.weight;
+  std::vector<std::pair<double, double>> pairs;
+  for (int r = 0; r < static_cast<int>(model.radiographs().size()); ++r) {
+    const PreparedRadiograph& rad = model.radiographs()[static_cast<size_t>(r)];
+    const PixelRect roi = rad.rois[static_cast<size_t>(level)];
+    const Image& measured = rad.levels[static_cast<size_t>(level)];
+    const Image path = model.pathLengths(theta, r, level, roi);
+    std::optional<ScatterEstimate> spread;
+    if (model.job().scatter.enabled()) spread = model.scatter(theta, r, level);
+    auto p = [&](int x, int y) { return static_cast<double>(path(x, y)); };
+    for (int y = 2; y + 2 < roi.height; ++y)
+      for (int x = 2; x + 2 < roi.width; ++x) {
+        bool smooth = p(x, y) > 0.0;
+        for (int j = -1; j <= 1 && smooth; ++j)
+          for (int i = -1; i <= 1 && smooth; ++i) {
+            const int u = x + i, v = y + j;
+            smooth = p(u, v) > 0.0 &&
+                     std::abs(p(u - 1, v) - 2 * p(u, v) + p(u + 1, v)) <= kSmoothPathMm &&
+                     std::abs(p(u, v - 1) - 2 * p(u, v) + p(u, v + 1)) <= kSmoothPathMm;
+          }
+        if (!smooth) continue;
+        double intensity = static_cast<double>(measured(roi.x + x, roi.y + y));
+        if (spread) {
+          const double g = spread->at(roi.x + x + 0.5, roi.y + y + 0.5);
+          intensity = (intensity * spread->open - w * g) / (1.0 - w);
+        }
+        pairs.push_back({p(x, y), intensity});
+      }
+  }
+  Table table;
+  table.pixels = static_cast<int64_t>(pairs.size());
+  double longest = 0.0;
+  for (const auto& [x, i] : pairs) longest = std::max(longest, x);
+  if (pairs.empty() || !(longest > 0.0))
+    fail(
+        "no pixel of the rois sees the part away from its edges: the poses do not put the part in "
+        "the rois");
+  std::vector<double> sum_x(kBins, 0.0), sum_i(kBins, 0.0), sum_ii(kBins, 0.0);
+  std::vector<int64_t> count(kBins, 0);
+  for (const auto& [x, i] : pairs) {
+    const auto b = static_cast<size_t>(std::min(kBins - 1, static_cast<int>(x / longest * kBins)));
+    sum_x[b] += x, sum_i[b] += i, sum_ii[b] += i * i, ++count[b];
+  }
+  std::vector<double> errors;
+  for (size_t b = 0; b < static_cast<size_t>(kBins); ++b) {
+    if (count[b] < kMinBinPixels) continue;
+    const double n = static_cast<double>(count[b]);
+    const double mean = sum_i[b] / n;
+    if (!(mean > 0.0 && mean <= 1.0)) continue;
+    table.path_mm.push_back(sum_x[b] / n);
+    table.transmission.push_back(mean);
+    errors.push_back(std::sqrt(std::max(0.0, sum_ii[b] / n - mean * mean) / n));
+  }
+  if (table.path_mm.size() < 10)
+    fail(
+        "only {} path bins have {} or more smooth pixels: the radiographs show too few thicknesses "
+        "of the part to calibrate from",
+        table.path_mm.size(), kMinBinPixels);
+  std::nth_element(errors.begin(), errors.begin() + static_cast<ptrdiff_t>(errors.size() / 2),
+                   errors.end());
+  table.noise = errors[errors.size() / 2];
+  return table;
+}
+
+double largestChange(const ExponentialSum& a, const ExponentialSum& b, double max_path_mm) {
+  return curveDeviation([&](double x) { return a.transmission(x); },
+                        [&](double x) { return b.transmission(x); }, max_path_mm)
+      .max_abs;
+}
+
+}  // namespace
+
+PartCalibrationJob PartCalibrationJob::load(const std::filesystem::path& path) {
+  const ConfigNode root = ConfigNode::loadFile(path);
+  PartCalibrationJob job;
+  job.measurement = MeasurementJob::fromConfig(root, path, false);
+  if (root.has("material"))
+    root.at("material").fail("a calibration finds the material: leave \"material\" out");
+  const ConfigNode c = root.at("calibration");
+  job.terms = static_cast<int>(c.get<double>("terms", 3.0));
+  if (job.terms < 1 || job.terms > 4) c.at("terms").fail("expected 1 to 4");
+  job.rounds = static_cast<int>(c.get<double>("rounds", 4.0));
+  if (job.rounds < 1 || job.rounds > 10) c.at("rounds").fail("expected 1 to 10");
+  const ConfigNode initial = c.at("initial");
+  const std::string name = initial.get<std::string>("radiograph");
+  job.initial_radiograph = -1;
+  for (size_t k = 0; k < job.measurement.radiographs.size(); ++k)
+    if (job.measurement.radiographs[k].name == name) job.initial_radiograph = static_cast<int>(k);
+  if (job.initial_radiograph < 0)
+    initial.at("radiograph").fail(fmt::format("no radiograph named '{}'", name));
+  job.initial_region = pixelRectFromConfig(initial.at("region"));
+  job.initial_path_mm = initial.at("path_mm").number(1e-3, 1e4);
+  root.finish();
+  return job;
+}
+
+PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
+  const auto start = std::chrono::steady_clock::now();
+  PartCalibration out;
+
+  // 1. Eq. 3.8 from the uniform region.
+  const RadiographSpec& spec =
+      job.measurement.radiographs[static_cast<size_t>(job.initial_radiograph)];
+  const Machine machine = Machine::load(job.measurement.machine_file);
+  {
+    const PreparedRadiograph prepared = prepareRadiograph(spec, machine);
+    const Image& image = prepared.levels.front();
+    if (!image.rect().contains(job.initial_region))
+      fail("{}: the initial region {} lies outside the {}x{} image", spec.image.string(),
+           toString(job.initial_region), image.width(), image.height());
+    out.initial_intensity = meanOf(image, job.initial_region);
+  }
+  if (!(out.initial_intensity > 0.0 && out.initial_intensity < 1.0))
+    fail(
+        "{}: the initial region {} has mean intensity {:.4f}; eq. 3.8 needs one in (0, 1), where "
+        "the part attenuates",
+        spec.image.string(), toString(job.initial_region), out.initial_intensity);
+  out.initial_mu_per_mm = -std::log(out.initial_intensity) / job.initial_path_mm;
+  const ExponentialSum initial({{1.0, out.initial_mu_per_mm}}, "thesis eq. 3.8");
+  spdlog::info("initial material (eq. 3.8): I1 = {:.4f} over {:.3f} mm, mu1 = {:.4f} /mm",
+               out.initial_intensity, job.initial_path_mm, out.initial_mu_per_mm);
+
+  // 2. Poses with that material.
+  ForwardModel model(job.measurement, initial);
+  std::vector<double> theta = model.start();
+  out.measurement = measure(model, theta);
+  theta = out.measurement.theta;
+
+  // 3-4. The material from the registered pixels, then everything together
+  // (poses, material, any free dimension) by least squares on the residuals,
+  // continued until the material settles.
+  ExponentialSum material = initial;
+  for (int round = 0; round < job.rounds; ++round) {
+    const Table table = tabulate(model, theta);
+    out.fit = fitCurve(table.path_mm, table.transmission, job.terms, table.noise, false,
+                       "calibration round " + std::to_string(round + 1));
+    const TermsFit& asked = out.fit.fits.back();  // the job's number of terms
+    PartCalibrationRound r;
+    r.report = asked.report;
+    r.pixels = table.pixels;
+    out.path_mm = table.path_mm;
+    out.transmission = table.transmission;
+    out.max_path_mm = table.path_mm.back();
+    if (round == 0) {
+      // The joint fit starts from the table's fit.
+      const ExponentialSum tabulated(asked.fitted, "fitted to the registered pixels");
+      model.setMaterial(tabulated);
+      model.freeMaterial(tabulated, theta);
+    }
+    MeasureOptions options;
+    options.search_poses = false;
+    options.joint_search = false;
+    out.measurement = measure(model, theta, options);
+    theta = out.measurement.theta;
+    r.material = model.materialOf(theta);
+    r.material = ExponentialSum(r.material.terms(),
+                                fmt::format("calibrated from the known part in {} (round {})",
+                                            job.measurement.file.filename().string(), round + 1));
+    r.pose_loss = out.measurement.total_loss;
+    r.change = largestChange(material, r.material, out.max_path_mm);
+    spdlog::info(
+        "round {}: {} pixels in {} bins up to {:.2f} mm, {}-term fit rms {:.3g} (noise {:.3g}); "
+        "after the joint fit the material changed by {:.5f}",
+        round + 1, table.pixels, table.path_mm.size(), out.max_path_mm, asked.report.terms_used,
+        asked.report.rms_residual, table.noise, r.change);
+    material = r.material;
+    out.rounds.push_back(r);
+    if (round > 0 && r.change < kSettled) break;
+  }
+  out.material = material;
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& result,
+                          const TrueCurve& true_curve, const std::filesystem::path& folder) {
+  nlohmann::json rounds = nlohmann::json::array();
+  for (const PartCalibrationRound& r : result.rounds)
+    rounds.push_back({{"material", r.material.toJson()},
+                      {"rms_residual", r.report.rms_residual},
+                      {"max_abs_residual", r.report.max_abs_residual},
+                      {"change", r.change},
+                      {"pose_loss", r.pose_loss},
+                      {"pixels", r.pixels}});
+  nlohmann::json poses = nlohmann::json::array();
+  for (const MeasuredRadiograph& r : result.measurement.radiographs)
+    poses.push_back({{"name", r.name}, {"pose", poseToJson(r.pose)}, {"loss", r.loss}});
+  const nlohmann::json figures = {
+      {"kind", "part"},
+      {"job", job.measurement.file.string()},
+      {"initial",
+       {{"radiograph",
+         job.measurement.radiographs[static_cast<size_t>(job.initial_radiograph)].name},
+        {"region",
+         {job.initial_region.x, job.initial_region.y, job.initial_region.width,
+          job.initial_region.height}},
+        {"path_mm", job.initial_path_mm},
+        {"intensity", result.initial_intensity},
+        {"mu_per_mm", result.initial_mu_per_mm}}},
+      {"rounds", rounds},
+      {"fit", toJson(result.fit)},
+      {"max_path_mm", result.max_path_mm},
+      {"material", result.material.toJson()},
+      {"poses", poses},
+      {"table", {{"path_mm", result.path_mm}, {"transmission", result.transmission}}},
+      {"seconds", result.seconds}};
+  CalibrationPlot plot;
+  plot.title = fmt::format("Calibration from a known part: {} path bins", result.path_mm.size());
+  plot.data_label = "pixels binned by path (scatter removed)";
+  plot.path_mm = result.path_mm;
+  plot.transmission = result.transmission;
+  plot.x_max_mm = result.max_path_mm;
+  writeCalibrationOutputs(folder, result.material, figures, plot, true_curve);
+
+  // The last pose fit, with the calibrated material: the residual images show
+  // what the model does not explain (thesis Figure 5.5).
+  MeasurementJob measurement = job.measurement;
+  measurement.material_file = folder / "material.json";
+  writeMeasurementOutputs(measurement, result.measurement, folder / "poses");
+}
+
+}  // namespace xgauge

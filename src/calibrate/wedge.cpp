@@ -1,0 +1,190 @@
+#include "xgauge/calibrate/wedge.h"
+
+#include "xgauge/calibrate/output.h"
+#include "xgauge/core/config.h"
+#include "xgauge/image/blur.h"
+#include "xgauge/measure/model.h"
+#include "xgauge/xray/machine.h"
+
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <cmath>
+
+namespace xgauge {
+
+WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path) {
+  const ConfigNode root = ConfigNode::loadFile(path);
+  const auto folder = path.parent_path();
+  WedgeCalibrationJob job;
+  job.file = path;
+  job.description = root.get<std::string>("description", "");
+  job.machine_file = folder / root.get<std::string>("machine");
+  const ConfigNode r = root.at("radiograph");
+  job.radiograph.name = "wedge";
+  job.radiograph.image = folder / r.get<std::string>("image");
+  if (r.has("dark") != r.has("flat")) r.fail("give both dark and flat, or neither");
+  if (r.has("dark")) {
+    job.radiograph.dark = folder / r.get<std::string>("dark");
+    job.radiograph.flat = folder / r.get<std::string>("flat");
+  }
+  job.radiograph.white_region = pixelRectFromConfig(r.at("white_region"));
+  const ConfigNode wedge = root.at("wedge");
+  job.max_thickness_mm = wedge.at("max_thickness_mm").number(0.01, 1e4);
+  job.ramp_length_mm = wedge.at("ramp_length_mm").number(0.1, 1e5);
+  if (auto scatter = root.find("scatter")) {
+    job.scatter.weight = scatter->at("weight").number(0.0, 0.9);
+    job.scatter.sigma_mm = scatter->at("sigma_mm").number(0.01, 1e4);
+  }
+  if (auto ramp = root.find("ramp")) {
+    if (auto columns = ramp->find("columns")) {
+      if (columns->size() != 2) columns->fail("expected [begin, end]");
+      job.ramp.columns = std::array<int, 2>{static_cast<int>((*columns)[0].number(0, 1e6)),
+                                            static_cast<int>((*columns)[1].number(0, 1e6))};
+    }
+    if (auto rows = ramp->find("rows")) {
+      if (rows->size() != 2) rows->fail("expected [thin end, thick end]");
+      job.ramp.rows = std::array<double, 2>{(*rows)[0].number(0, 1e6), (*rows)[1].number(0, 1e6)};
+    }
+  }
+  job.max_terms = static_cast<int>(root.get<double>("max_terms", 4.0));
+  if (job.max_terms < 1 || job.max_terms > 4) root.at("max_terms").fail("expected 1 to 4");
+  job.margin_rows = static_cast<int>(root.get<double>("margin_rows", 4.0));
+  if (job.margin_rows < 0 || job.margin_rows > 1000)
+    root.at("margin_rows").fail("expected 0 to 1000");
+  root.finish();
+  Machine::load(job.machine_file);  // errors name the machine file now
+  return job;
+}
+
+WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
+  const auto start = std::chrono::steady_clock::now();
+  const Machine machine = Machine::load(job.machine_file);
+  const std::string name = job.radiograph.image.string();
+  WedgeCalibration out;
+
+  // 1. Normalize; remove the scatter.
+  RadiographSpec spec = job.radiograph;
+  spec.roi = machine.detectorRect();  // no part-shadow search: the ramp finder looks
+  const PreparedRadiograph prepared = prepareRadiograph(spec, machine);
+  Image image = prepared.levels.front();
+  if (job.scatter.enabled())
+    image = removeScatter(image, job.scatter.weight, job.scatter.sigma_mm / machine.pitch_u_mm,
+                          spec.white_region);
+
+  // 2. The ramp.
+  out.ramp = detectRamp(image, job.ramp, name);
+  const RampDetection& ramp = out.ramp;
+  spdlog::info("{}: ramp in columns {}..{}, thin end at row {:.2f}, thick end at row {:.2f}{}",
+               name, ramp.column_begin, ramp.column_end - 1, ramp.thin_row, ramp.thick_row,
+               ramp.automatic_rows ? " (found)" : " (given)");
+
+  // 3. Geometry: both ends on the back face.
+  const double d = machine.source_detector_distance_mm;
+  const double y_thin_det = (machine.cy_px - ramp.thin_row) * machine.pitch_v_mm;
+  const double y_thick_det = (machine.cy_px - ramp.thick_row) * machine.pitch_v_mm;
+  out.magnification = std::abs(y_thin_det - y_thick_det) / job.ramp_length_mm;
+  if (!(out.magnification > 1.0))
+    fail(
+        "{}: the ramp spans {:.1f} rows, {:.2f} mm on the detector, less than its length of {} mm: "
+        "check ramp_length_mm and the machine's pixel pitch",
+        name, std::abs(ramp.thick_row - ramp.thin_row), std::abs(y_thin_det - y_thick_det),
+        job.ramp_length_mm);
+  out.back_face_z_mm = d * (1.0 - 1.0 / out.magnification);
+  const double y_thin = y_thin_det / out.magnification, y_thick = y_thick_det / out.magnification;
+  const double t = job.max_thickness_mm, delta = y_thick - y_thin;
+  const double lambda_back = 1.0 - out.back_face_z_mm / d;
+  auto path = [&](double u, double v) {  // continuous pixel coordinate
+    const Vec3 p = machine.detectorPoint(u, v);
+    const double lambda_floor =
+        (d - out.back_face_z_mm + t * y_thin / delta) / (d + t * p.y() / delta);
+    return std::sqrt(p.x() * p.x() + p.y() * p.y() + d * d) * (lambda_back - lambda_floor);
+  };
+  out.x_max_mm = path(0.5 * (ramp.column_begin + ramp.column_end), ramp.thick_row);
+
+  // 4. The table, thin end first.
+  const bool down = ramp.thin_row < ramp.thick_row;
+  const int first =
+      static_cast<int>(std::ceil(down ? ramp.thin_row : ramp.thick_row)) + job.margin_rows;
+  const int last =
+      static_cast<int>(std::floor(down ? ramp.thick_row : ramp.thin_row)) - 1 - job.margin_rows;
+  if (last - first < 20)
+    fail("{}: only {} rows of ramp remain between rows {:.1f} and {:.1f} after the margins", name,
+         std::max(0, last - first + 1), ramp.thin_row, ramp.thick_row);
+  for (int k = 0; k <= last - first; ++k) {
+    const int row = down ? first + k : last - k;
+    double sum_path = 0.0, sum_i = 0.0;
+    for (int x = ramp.column_begin; x < ramp.column_end; ++x) {
+      sum_path += path(x + 0.5, row + 0.5);
+      sum_i += static_cast<double>(image(x, row));
+    }
+    const double n = ramp.column_end - ramp.column_begin;
+    const double x_mean = sum_path / n, i_mean = sum_i / n;
+    if (!out.path_mm.empty() && !(x_mean > out.path_mm.back())) continue;
+    if (!(x_mean >= 0.0)) continue;
+    if (!(i_mean > 0.0))
+      fail("{}: row {} of the ramp averages {:.4g}, not a positive intensity", name, row, i_mean);
+    out.rows.push_back(row);
+    out.path_mm.push_back(x_mean);
+    out.transmission.push_back(i_mean);
+  }
+
+  // 5-6. Fit, then eq. 3.7.
+  out.fit = fitCurve(out.path_mm, out.transmission, job.max_terms, ramp.row_noise, true, name);
+  out.material = shiftAndScale(out.fit.best().fitted, out.x_max_mm, &out.x0_mm);
+  out.material = ExponentialSum(
+      out.material.terms(),
+      fmt::format(
+          "wedge calibration from {}: {} exponentials fitted to {} rows, shifted and scaled "
+          "by thesis eq. 3.7 (x0 = {:.4f} mm, x_max = {:.4f} mm)",
+          job.radiograph.image.filename().string(), out.fit.best().report.terms_used,
+          out.rows.size(), out.x0_mm, out.x_max_mm));
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return out;
+}
+
+void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& result,
+                           const TrueCurve& true_curve, const std::filesystem::path& folder) {
+  const RampDetection& ramp = result.ramp;
+  // The table on the final curve's path axis: eq. 3.7 maps x to x s + x0.
+  const double s = (result.x_max_mm - result.x0_mm) / result.x_max_mm;
+  std::vector<double> shifted;
+  for (double x : result.path_mm) shifted.push_back((x - result.x0_mm) / s);
+
+  nlohmann::json figures = {{"kind", "wedge"},
+                            {"job", job.file.string()},
+                            {"radiograph", job.radiograph.image.string()},
+                            {"ramp",
+                             {{"columns", {ramp.column_begin, ramp.column_end}},
+                              {"automatic_columns", ramp.automatic_columns},
+                              {"thin_end_row", ramp.thin_row},
+                              {"thick_end_row", ramp.thick_row},
+                              {"automatic_rows", ramp.automatic_rows},
+                              {"row_noise", ramp.row_noise},
+                              {"rows_used", {result.rows.front(), result.rows.back()}}}},
+                            {"geometry",
+                             {{"back_face_magnification", result.magnification},
+                              {"back_face_above_detector_mm", result.back_face_z_mm},
+                              {"x_max_mm", result.x_max_mm},
+                              {"max_thickness_mm", job.max_thickness_mm},
+                              {"ramp_length_mm", job.ramp_length_mm}}},
+                            {"fit", toJson(result.fit)},
+                            {"eq_3_7", {{"x0_mm", result.x0_mm}, {"x_max_mm", result.x_max_mm}}},
+                            {"material", result.material.toJson()},
+                            {"table",
+                             {{"row", result.rows},
+                              {"path_mm_as_fitted", result.path_mm},
+                              {"path_mm", shifted},
+                              {"transmission", result.transmission}}},
+                            {"seconds", result.seconds}};
+  CalibrationPlot plot;
+  plot.title = fmt::format("Wedge calibration: {} rows of {}", result.rows.size(),
+                           job.radiograph.image.filename().string());
+  plot.data_label = "rows of the ramp (scatter removed)";
+  plot.path_mm = shifted;
+  plot.transmission = result.transmission;
+  plot.x_max_mm = result.x_max_mm;
+  writeCalibrationOutputs(folder, result.material, figures, plot, true_curve);
+}
+
+}  // namespace xgauge

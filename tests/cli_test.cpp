@@ -7,6 +7,7 @@
 #include <tiffio.h>
 
 #include <array>
+#include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -39,7 +40,8 @@ class Cli : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = fs::temp_directory_path() /
-           ("xgauge_cli_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+           ("xgauge_cli_" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
   }
@@ -63,8 +65,8 @@ class Cli : public ::testing::Test {
   // Fails the test unless the run failed with `message` and wrote nothing.
   void expectCleanFailure(const CommandResult& r, const std::string& message) {
     EXPECT_NE(r.status, 0) << r.output;
-    EXPECT_NE(r.output.find(message), std::string::npos)
-        << "expected '" << message << "' in:\n" << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << "expected '" << message << "' in:\n"
+                                                         << r.output;
     EXPECT_TRUE(fs::is_empty(dir_) || !fs::exists(out("out.tif"))) << r.output;
     for (const auto& entry : fs::directory_iterator(dir_))
       EXPECT_EQ(entry.path().extension(), ".json") << "left behind: " << entry.path();
@@ -79,8 +81,9 @@ const char* kMachine = R"({"source_detector_distance_mm": 1000,
 TEST_F(Cli, PathLengthOfACuboidFacingTheSource) {
   const std::string machine = write("machine.json", kMachine);
   const CommandResult r = run("render " + kRoot + "/parts/cuboid.json --machine " + machine +
-                    " --quantity path --rotation-deg 0 0 0 --translation-mm 0 0 400"
-                    " --set size_z=12.5 -o " + out("path.tif") + " --png " + out("path.png") + " -q");
+                              " --quantity path --rotation-deg 0 0 0 --translation-mm 0 0 400"
+                              " --set size_z=12.5 -o " +
+                              out("path.tif") + " --png " + out("path.png") + " -q");
   ASSERT_EQ(r.status, 0) << r.output;
   const Image path = readTiff(out("path.tif"));
   ASSERT_EQ(path.width(), 128);
@@ -126,9 +129,9 @@ TEST_F(Cli, MissingPartFile) {
 }
 
 TEST_F(Cli, MalformedMachineJson) {
-  const std::string machine = write("machine.json", "{\n  \"source_detector_distance_mm\": 1000,\n  \"detector\": {\n}");
-  expectCleanFailure(run(renderArgs(kRoot + "/parts/cuboid.json", machine, "")),
-                     "machine.json:4");
+  const std::string machine =
+      write("machine.json", "{\n  \"source_detector_distance_mm\": 1000,\n  \"detector\": {\n}");
+  expectCleanFailure(run(renderArgs(kRoot + "/parts/cuboid.json", machine, "")), "machine.json:4");
 }
 
 TEST_F(Cli, MisspelledMachineKey) {
@@ -151,8 +154,9 @@ TEST_F(Cli, OpenMesh) {
 
 TEST_F(Cli, PartBehindTheSource) {
   const std::string machine = write("machine.json", kMachine);
-  const CommandResult r = run("render " + kRoot + "/parts/cuboid.json --machine " + machine +
-                    " --quantity path --rotation-deg 0 0 0 --translation-mm 0 0 1200 -o " + out("out.tif"));
+  const CommandResult r =
+      run("render " + kRoot + "/parts/cuboid.json --machine " + machine +
+          " --quantity path --rotation-deg 0 0 0 --translation-mm 0 0 1200 -o " + out("out.tif"));
   expectCleanFailure(r, "check the pose");
 }
 
@@ -164,16 +168,17 @@ TEST_F(Cli, RegionOutsideTheDetector) {
 
 TEST_F(Cli, MissingMaterialForIntensity) {
   const std::string machine = write("machine.json", kMachine);
-  const CommandResult r = run("render " + kRoot + "/parts/cuboid.json --machine " + machine +
-                    " --rotation-deg 0 0 0 --translation-mm 0 0 400 -o " + out("out.tif"));
+  const CommandResult r =
+      run("render " + kRoot + "/parts/cuboid.json --machine " + machine +
+          " --rotation-deg 0 0 0 --translation-mm 0 0 400 -o " + out("out.tif"));
   expectCleanFailure(r, "--material");
 }
 
 TEST_F(Cli, OutputFolderMissing) {
   const std::string machine = write("machine.json", kMachine);
   const CommandResult r = run("render " + kRoot + "/parts/cuboid.json --machine " + machine +
-                    " --quantity path --rotation-deg 0 0 0 --translation-mm 0 0 400 -o " +
-                    out("no/such/folder/out.tif"));
+                              " --quantity path --rotation-deg 0 0 0 --translation-mm 0 0 400 -o " +
+                              out("no/such/folder/out.tif"));
   expectCleanFailure(r, "does not exist");
 }
 
@@ -232,7 +237,8 @@ class MeasureJob : public Cli {
   void SetUp() override {
     Cli::SetUp();
     write("machine.json", kMachine);
-    write("material.json", R"({"model": "exponential_sum", "terms": [{"weight": 1, "mu_per_mm": 0.05}]})");
+    write("material.json",
+          R"({"model": "exponential_sum", "terms": [{"weight": 1, "mu_per_mm": 0.05}]})");
     Image image(128, 96, 1.0f);
     for (int y = 30; y < 60; ++y)
       for (int x = 40; x < 90; ++x) image(x, y) = 0.6f;
@@ -243,15 +249,18 @@ class MeasureJob : public Cli {
     return write("job.json", R"({
       "part": ")" + kRoot + R"(/parts/cuboid.json",
       "machine": "machine.json", "material": "material.json",
-      "radiographs": [{"name": "a", "image": ")" + image + R"(", "white_region": [0, 0, 16, 16])" +
-                                 radiograph_extra + R"(}],
+      "radiographs": [{"name": "a", "image": ")" +
+                                 image + R"(", "white_region": [0, 0, 16, 16])" + radiograph_extra +
+                                 R"(}],
       "pose_bounds": {"rotation_deg": [[-5, 5], [-5, 5], [-5, 5]],
-                      "centre_mm": [[-10, 10], [-10, 10], [390, 410]]})" + top_extra + "}");
+                      "centre_mm": [[-10, 10], [-10, 10], [390, 410]]})" +
+                                 top_extra + "}");
   }
   void expectJobFailure(const std::string& job_file, const std::string& message) {
     const CommandResult r = run("measure " + job_file + " -o " + out("result") + " -q");
     EXPECT_NE(r.status, 0) << r.output;
-    EXPECT_NE(r.output.find(message), std::string::npos) << "expected '" << message << "' in:\n" << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << "expected '" << message << "' in:\n"
+                                                         << r.output;
     EXPECT_FALSE(fs::exists(out("result") + "/result.json"));
   }
 };
@@ -260,7 +269,8 @@ TEST_F(MeasureJob, MissingImage) { expectJobFailure(job("", "", "nope.tif"), "no
 
 TEST_F(MeasureJob, ImageSizeDoesNotMatchTheMachine) {
   writeTiff(out("small.tif"), Image(64, 48, 1.0f), TiffFormat::kFloat32);
-  expectJobFailure(job("", "", "small.tif"), "is 64x48 pixels but the machine's detector is 128x96");
+  expectJobFailure(job("", "", "small.tif"),
+                   "is 64x48 pixels but the machine's detector is 128x96");
 }
 
 TEST_F(MeasureJob, RegionOutsideTheImage) {
@@ -268,7 +278,8 @@ TEST_F(MeasureJob, RegionOutsideTheImage) {
 }
 
 TEST_F(MeasureJob, UnknownKey) {
-  expectJobFailure(job("", R"(, "schedul": "default")"), "unknown key 'schedul'; did you mean 'schedule'?");
+  expectJobFailure(job("", R"(, "schedul": "default")"),
+                   "unknown key 'schedul'; did you mean 'schedule'?");
 }
 
 TEST_F(MeasureJob, StartOutsideBounds) {
@@ -293,6 +304,82 @@ TEST_F(MeasureJob, NanPixels) {
   }
   TIFFClose(tiff);
   expectJobFailure(job("", "", "nan.tif"), "pixel (7, 5) is nan");
+}
+
+}  // namespace
+}  // namespace xgauge
+
+namespace xgauge {
+namespace {
+
+// `xgauge calibrate wedge` on a synthetic wedge radiograph: the ramp from
+// row 40 (thin end) to row 260 (thick end) in columns 50..149, open beam
+// around it. Bad input must fail with a clear message and leave no material.
+class CalibrateWedge : public Cli {
+ protected:
+  void SetUp() override {
+    Cli::SetUp();
+    write("machine.json", R"({"source_detector_distance_mm": 1000,
+      "detector": {"columns": 200, "rows": 300, "pixel_pitch_mm": [1.0, 1.0]}})");
+    writeTiff(out("wedge.tif"), ramp(40, 260), TiffFormat::kFloat32);
+  }
+  static Image ramp(int thin, int thick) {
+    Image image(200, 300, 1.0f);
+    for (int y = std::max(0, thin); y < std::min(300, thick); ++y)
+      for (int x = 50; x < 150; ++x) {
+        const double path = 0.2 + 19.8 * (y + 0.5 - thin) / (thick - thin);
+        image(x, y) =
+            static_cast<float>(0.6 * std::exp(-0.05 * path) + 0.4 * std::exp(-0.3 * path));
+      }
+    return image;
+  }
+  std::string job(const std::string& extra = "", const std::string& image = "wedge.tif") {
+    return write("job.json", R"({"machine": "machine.json",
+      "radiograph": {"image": ")" +
+                                 image + R"(", "white_region": [5, 5, 30, 30]},
+      "wedge": {"max_thickness_mm": 20.0, "ramp_length_mm": 90.0})" +
+                                 extra + "}");
+  }
+  CommandResult calibrate(const std::string& job_file) {
+    return run("calibrate wedge " + job_file + " -o " + out("cal") + " -q");
+  }
+  void expectFailure(const std::string& job_file, const std::string& message) {
+    const CommandResult r = calibrate(job_file);
+    EXPECT_NE(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << "expected '" << message << "' in:\n"
+                                                         << r.output;
+    EXPECT_FALSE(fs::exists(out("cal") + "/material.json"));
+  }
+};
+
+TEST_F(CalibrateWedge, WritesTheMaterialFiguresAndPlot) {
+  const CommandResult r = calibrate(job());
+  ASSERT_EQ(r.status, 0) << r.output;
+  const size_t at = r.output.find("thin end at row ");
+  ASSERT_NE(at, std::string::npos) << r.output;
+  EXPECT_NEAR(std::stod(r.output.substr(at + 16)), 40.0, 1.0) << r.output;
+  for (const char* file : {"material.json", "calibration.json", "calibration.png"})
+    EXPECT_TRUE(fs::exists(out("cal") + "/" + file)) << file;
+}
+
+TEST_F(CalibrateWedge, NoRamp) {
+  writeTiff(out("open.tif"), Image(200, 300, 1.0f), TiffFormat::kFloat32);
+  expectFailure(job("", "open.tif"), "no ramp found");
+}
+
+TEST_F(CalibrateWedge, RampRunsOffTheImage) {
+  writeTiff(out("cut.tif"), ramp(-60, 260), TiffFormat::kFloat32);
+  expectFailure(job("", "cut.tif"), "runs off the image");
+}
+
+TEST_F(CalibrateWedge, FitDoesNotConverge) {
+  // Rows given past both ends of the ramp: open beam at both ends of the table.
+  expectFailure(job(R"(, "ramp": {"rows": [10, 295]})"), "does not converge");
+}
+
+TEST_F(CalibrateWedge, MisspelledKeyAndMissingFile) {
+  expectFailure(job(R"(, "max_term": 3)"), "unknown key 'max_term'");
+  expectFailure(job("", "nope.tif"), "nope.tif");
 }
 
 }  // namespace

@@ -131,9 +131,13 @@ std::array<double, 2> findRampRows(const std::vector<double>& p, double noise,
         "to {:.4f})",
         name, a, b, start_level, lowest);
 
-  // Thin end: the step from the open beam.
+  // Thin end: the step from the open beam, half-way between the open beam
+  // and the ramp's value at the step (a line through the ramp's first rows,
+  // extrapolated: where the ramp is steep a median would sit too low).
   const double outside = medianOf(p, a - 12, a - 3);
-  const double thin = crossingNear(p, 0.5 * (outside + start_level), a, 8).value_or(a);
+  const Line head = fitLine(p, a + 2, a + 12);
+  const double inside_at_step = head.slope * a + head.intercept;
+  const double thin = crossingNear(p, 0.5 * (outside + inside_at_step), a, 8).value_or(a);
 
   // Thick end. A step back to the open beam (the shadow ends within a few
   // rows of the minimum): its half-way crossing. Otherwise a kink: where the
@@ -141,7 +145,8 @@ std::array<double, 2> findRampRows(const std::vector<double>& p, double noise,
   // rise (its first 5 %, 4 to 40 rows), refined once around the intersection.
   double thick = b + 1.0;
   if (b - m < 8) {
-    const double inside = medianOf(p, m - 10, m - 2);
+    const Line tail = fitLine(p, std::max(a + 2, m - 12), std::max(a + 3, m - 2));
+    const double inside = tail.slope * (b + 1.0) + tail.intercept;
     const double after = medianOf(p, b + 3, b + 12);
     thick = crossingNear(p, 0.5 * (inside + after), b, 10).value_or(b + 1.0);
   } else {

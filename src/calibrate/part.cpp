@@ -197,7 +197,22 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
     out.rounds.push_back(r);
     if (round > 0 && r.change < kSettled) break;
   }
-  out.material = material;
+  // The final material: the exponential fit to the pixels registered at the
+  // final poses. The joint fit's own material follows the image loss, which
+  // barely sees short paths (they occur only next to edges); the binned table
+  // gives every path length the same weight, as a wedge would.
+  const Table table = tabulate(model, theta);
+  out.fit = fitCurve(table.path_mm, table.transmission, job.terms, table.noise, false,
+                     "final calibration");
+  out.path_mm = table.path_mm;
+  out.transmission = table.transmission;
+  out.max_path_mm = table.path_mm.back();
+  out.material = ExponentialSum(
+      out.fit.best().fitted,
+      fmt::format("calibrated from the known part of {}: {} exponentials fitted to {} pixels in {} "
+                  "path bins up to {:.2f} mm at the jointly fitted poses",
+                  job.measurement.file.filename().string(), out.fit.best().report.terms_used,
+                  table.pixels, table.path_mm.size(), out.max_path_mm));
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }

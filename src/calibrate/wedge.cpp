@@ -75,9 +75,9 @@ WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
   // 2. The ramp.
   out.ramp = detectRamp(image, job.ramp, name);
   const RampDetection& ramp = out.ramp;
-  spdlog::info("{}: ramp in columns {}..{}, thin end at row {:.2f}, thick end at row {:.2f}{}",
-               name, ramp.column_begin, ramp.column_end - 1, ramp.thin_row, ramp.thick_row,
-               ramp.automatic_rows ? " (found)" : " (given)");
+  spdlog::debug("{}: ramp in columns {}..{}, thin end at row {:.2f}, thick end at row {:.2f}{}",
+                name, ramp.column_begin, ramp.column_end - 1, ramp.thin_row, ramp.thick_row,
+                ramp.automatic_rows ? " (found)" : " (given)");
 
   // 3. Geometry: both ends on the back face.
   const double d = machine.source_detector_distance_mm;

@@ -23,6 +23,11 @@
 //      rotation changes the paths), and only a joint step removes it.
 //      Step 4 repeats, up to `rounds` times, until the material changes by
 //      less than 2e-4 in intensity.
+//   5. The material returned: step 3's fit (M = 1 .. terms, the smallest
+//      that fits within the noise, curve.h) on the pixels at the final poses.
+//      The joint fit's own material follows the image loss, which barely sees
+//      short paths (they occur only next to edges); the binned table weights
+//      every path length alike, as a wedge would.
 //
 // Job JSON: a measurement job (measure/job.h) without "material", with the
 // known dimensions under "dimensions": {"fixed": {...}} (any left free are

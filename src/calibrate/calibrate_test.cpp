@@ -1,6 +1,8 @@
 // Calibration on synthetic data with a known answer: ramps whose rows are
 // known, a wedge and a cuboid rendered with a known material.
 #include "xgauge/calibrate/part.h"
+
+#include "core/expect_error.h"
 #include "xgauge/calibrate/ramp.h"
 #include "xgauge/calibrate/wedge.h"
 
@@ -112,15 +114,6 @@ TEST(RampDetection, OverridesAreUsedAsGiven) {
   const RampDetection found = detectRamp(syntheticRamp(100, 500, 0, 3), options, "synthetic");
   EXPECT_NEAR(found.thin_row, 100.0, 2.0);
   EXPECT_NEAR(found.thick_row, 500.0, 2.0);
-}
-
-void expectErrorMentioning(const std::function<void()>& f, const std::string& text) {
-  try {
-    f();
-    ADD_FAILURE() << "no Error thrown; expected one mentioning '" << text << "'";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
-  }
 }
 
 TEST(RampDetection, RejectsImagesWithoutAWholeRamp) {

@@ -1,5 +1,7 @@
 #include "xgauge/loss/loss.h"
 
+#include "core/expect_error.h"
+
 #include <gtest/gtest.h>
 #include <tbb/global_control.h>
 
@@ -28,15 +30,6 @@ Image simulatedImage(const Image& measured, const std::function<float(int, int)>
   for (int y = 0; y < kRoi.height; ++y)
     for (int x = 0; x < kRoi.width; ++x) simulated(x, y) += offset(x, y);
   return simulated;
-}
-
-void expectErrorMentioning(const std::function<void()>& f, const std::string& text) {
-  try {
-    f();
-    ADD_FAILURE() << "no Error thrown; expected one mentioning '" << text << "'";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
-  }
 }
 
 TEST(Loss, KindNames) {

@@ -1,5 +1,7 @@
 #include "xgauge/material/exponential_fit.h"
 
+#include "core/expect_error.h"
+
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -70,15 +72,6 @@ double maxCurveDifference(const ExponentialSum& a, const ExponentialSum& b, doub
     worst = std::max(worst, std::abs(a.transmission(x) - b.transmission(x)));
   }
   return worst;
-}
-
-void expectErrorMentioning(const std::function<void()>& f, const std::string& text) {
-  try {
-    f();
-    ADD_FAILURE() << "no Error thrown; expected one mentioning '" << text << "'";
-  } catch (const Error& e) {
-    EXPECT_NE(std::string(e.what()).find(text), std::string::npos) << e.what();
-  }
 }
 
 TEST(ExponentialFit, RecoversTwoSeparatedTerms) {

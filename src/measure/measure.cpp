@@ -269,6 +269,24 @@ StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
   return report;
 }
 
+// The first step of a joint stage for a kind of parameter, in its physical
+// unit: what remains uncertain after the stages per radiograph.
+double firstStep(ForwardModel::Kind kind) {
+  switch (kind) {
+    case ForwardModel::Kind::kDimension:
+      return 0.3;  // mm
+    case ForwardModel::Kind::kRotation:
+      return 1.0;  // deg
+    case ForwardModel::Kind::kPosition:
+      return 1.0;  // mm
+    case ForwardModel::Kind::kAxis:
+      return 1.0;  // deg
+    case ForwardModel::Kind::kMaterial:
+      return 0.02;  // fraction, or 1/mm
+  }
+  return 1.0;
+}
+
 void planSchedule(ForwardModel& model, std::vector<double>& theta, Runner& runner, bool thesis,
                   const MeasureOptions& options) {
   const bool search_poses = options.search_poses;
@@ -437,24 +455,7 @@ void planSchedule(ForwardModel& model, std::vector<double>& theta, Runner& runne
     std::vector<double> s;
     for (int i : all) {
       const auto index = static_cast<size_t>(i);
-      double step = 0.0;
-      switch (model.kind(i)) {
-        case ForwardModel::Kind::kDimension:
-          step = 0.3;
-          break;  // mm
-        case ForwardModel::Kind::kRotation:
-          step = 1.0;
-          break;  // deg
-        case ForwardModel::Kind::kPosition:
-          step = 1.0;
-          break;  // mm
-        case ForwardModel::Kind::kAxis:
-          step = 1.0;
-          break;  // deg
-        case ForwardModel::Kind::kMaterial:
-          step = 0.02;
-          break;  // fraction, or 1/mm
-      }
+      const double step = firstStep(model.kind(i));
       s.push_back(std::min(scale * step, 0.5 * (model.upper()[index] - model.lower()[index])));
     }
     return s;

@@ -384,3 +384,52 @@ TEST_F(CalibrateWedge, MisspelledKeyAndMissingFile) {
 
 }  // namespace
 }  // namespace xgauge
+
+namespace xgauge {
+namespace {
+
+// `xgauge calibrate part`: bad input fails before anything is written.
+class CalibratePart : public Cli {
+ protected:
+  void SetUp() override {
+    Cli::SetUp();
+    write("machine.json", kMachine);
+    Image image(128, 96, 1.0f);
+    for (int y = 30; y < 60; ++y)
+      for (int x = 40; x < 90; ++x) image(x, y) = 0.6f;
+    writeTiff(out("a.tif"), image, TiffFormat::kFloat32);
+  }
+  std::string job(const std::string& region, const std::string& top_extra = "") {
+    return write("job.json", R"({
+      "part": ")" + kRoot + R"(/parts/cuboid.json", "machine": "machine.json",
+      "dimensions": {"fixed": {"size_x": 20, "size_y": 12, "size_z": 10}},
+      "radiographs": [{"name": "a", "image": "a.tif", "white_region": [0, 0, 16, 16]}],
+      "pose_bounds": {"rotation_deg": [[-5, 5], [-5, 5], [-5, 5]],
+                      "centre_mm": [[-10, 10], [-10, 10], [390, 410]]},
+      "calibration": {"initial": {"radiograph": "a", "region": )" +
+                                 region + R"(, "path_mm": 10}}
+      )" + top_extra + "}");
+  }
+  void expectFailure(const std::string& job_file, const std::string& message) {
+    const CommandResult r = run("calibrate part " + job_file + " -o " + out("cal") + " -q");
+    EXPECT_NE(r.status, 0) << r.output;
+    EXPECT_NE(r.output.find(message), std::string::npos) << "expected '" << message << "' in:\n"
+                                                         << r.output;
+    EXPECT_FALSE(fs::exists(out("cal") + "/material.json"));
+  }
+};
+
+TEST_F(CalibratePart, InitialRegionInTheOpenBeam) {
+  expectFailure(job("[2, 2, 10, 10]"), "eq. 3.8 needs one in (0, 1)");
+}
+
+TEST_F(CalibratePart, InitialRegionOutsideTheImage) {
+  expectFailure(job("[120, 90, 20, 20]"), "lies outside the 128x96 image");
+}
+
+TEST_F(CalibratePart, MaterialIsNotAnInput) {
+  expectFailure(job("[50, 35, 10, 10]", R"(, "material": "m.json")"), "leave \"material\" out");
+}
+
+}  // namespace
+}  // namespace xgauge

@@ -76,6 +76,27 @@ Image syntheticRamp(int thin, int thick, int rise_rows, uint64_t seed) {
   return image;
 }
 
+TEST(CurveFit, PicksTheSmallestNumberOfTermsThatFitsWithinTheNoise) {
+  std::mt19937_64 rng(11);
+  std::normal_distribution<double> noise(0.0, 1e-4);
+  std::vector<double> x, one, two, step;
+  for (int i = 0; i <= 400; ++i) {
+    x.push_back(0.05 * i);
+    one.push_back(std::exp(-0.1 * x.back()) + noise(rng));
+    two.push_back(0.7 * std::exp(-0.05 * x.back()) + 0.3 * std::exp(-0.4 * x.back()) + noise(rng));
+    step.push_back(x.back() < 10.0 ? 0.9 : 0.2);
+  }
+  const CurveFit a = fitCurve(x, one, 4, 1e-4, false, "one");
+  EXPECT_EQ(a.best().terms, 1) << a.choice;
+  ASSERT_EQ(a.fits.size(), 4u);
+  const CurveFit b = fitCurve(x, two, 4, 1e-4, false, "two");
+  EXPECT_EQ(b.best().terms, 2) << b.choice;
+  EXPECT_LT(b.best().report.rms_residual, 1.25e-4);
+  // Not an attenuation curve: the fit cannot converge to it.
+  expectErrorMentioning([&] { fitCurve(x, step, 4, 1e-4, false, "step.tif"); },
+                        "does not converge");
+}
+
 TEST(RampDetection, FindsTheRowsOfASyntheticRampWithinTwoRows) {
   struct Case {
     int thin, thick, rise;

@@ -14,6 +14,7 @@ CurveFit fitCurve(std::span<const double> path_mm, std::span<const double> trans
   CurveFit out;
   ExponentialFitOptions options;
   options.free_amplitude = free_amplitude;
+  options.max_transmission = 2.0;  // measured: noise may lift a value above 1
   for (int m = 1; m <= max_terms; ++m) {
     TermsFit fit;
     fit.terms = m;

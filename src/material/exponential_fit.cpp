@@ -174,6 +174,8 @@ ExponentialFitReport residualsOf(const std::vector<ExponentialTerm>& model,
 void ExponentialFitOptions::validate() const {
   if (weighting != Weighting::kUniform && weighting != Weighting::kRelative)
     fail("unknown exponential-fit weighting {}", static_cast<int>(weighting));
+  if (!(max_transmission >= 1.0 && max_transmission <= 10.0))
+    fail("max_transmission must be in [1, 10], got {}", max_transmission);
   if (max_evaluations_per_start < 100)
     fail("max_evaluations_per_start must be >= 100, got {}", max_evaluations_per_start);
 }
@@ -189,7 +191,7 @@ std::vector<ExponentialTerm> fitExponentialTerms(std::span<const double> path_mm
   const bool sum_to_one = !options.free_amplitude;
   checkCurve(path_mm, transmission,
              static_cast<size_t>(std::max(2, 2 * terms - (sum_to_one ? 1 : 0))),
-             sum_to_one ? kMaxTransmission : 2.0);
+             options.max_transmission);
 
   const ProjectedProblem problem(path_mm, transmission, options.weighting, sum_to_one);
   const size_t m = static_cast<size_t>(terms);

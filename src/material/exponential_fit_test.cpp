@@ -220,6 +220,7 @@ TEST(ExponentialFit, FreeAmplitudeRecoversKnownTerms) {
   }
   ExponentialFitOptions options;
   options.free_amplitude = true;
+  options.max_transmission = 2.0;
   ExponentialFitReport report;
   const std::vector<ExponentialTerm> fit =
       fitExponentialTerms(curve.path_mm, curve.transmission, 3, options, &report);

@@ -9,9 +9,7 @@
 namespace xgauge {
 namespace {
 
-ExponentialSum threeTerms() {
-  return ExponentialSum({{0.5, 0.02}, {0.3, 0.08}, {0.2, 0.4}});
-}
+ExponentialSum threeTerms() { return ExponentialSum({{0.5, 0.02}, {0.3, 0.08}, {0.2, 0.4}}); }
 
 TEST(ExponentialSum, ClosedForm) {
   const auto m = threeTerms();
@@ -42,8 +40,8 @@ TEST(ExponentialSum, JsonRoundTrip) {
 }
 
 TEST(ExponentialSum, ErrorsNameTheFileAndKey) {
-  auto root = ConfigNode::parse(R"({"model": "exponential_sum", "terms": [{"weight": 1}]})",
-                                "al.json");
+  auto root =
+      ConfigNode::parse(R"({"model": "exponential_sum", "terms": [{"weight": 1}]})", "al.json");
   try {
     ExponentialSum::fromConfig(root);
     FAIL();

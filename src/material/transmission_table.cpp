@@ -27,8 +27,7 @@ TransmissionTable TransmissionTable::forMaterial(const ExponentialSum& material,
   // h^4 mu^4 / 384 <= 1e-10  ->  h <= (3.84e-8)^(1/4) / mu ~= 0.014 / mu.
   const double step = mu_max > 0 ? std::min(0.01, 0.014 / mu_max) : 0.01;
   return TransmissionTable([&](double x) { return material.transmission(x); },
-                           [&](double x) { return material.derivative(x); }, max_path_mm,
-                           step);
+                           [&](double x) { return material.derivative(x); }, max_path_mm, step);
 }
 
 }  // namespace xgauge

@@ -12,7 +12,6 @@ namespace xgauge {
 double massAttenuationCm2PerG(const std::string& compound, double energy_kev);
 
 // Linear attenuation coefficient in 1/mm for the given density (g/cm^3).
-double linearAttenuationPerMm(const std::string& compound, double density_g_cm3,
-                              double energy_kev);
+double linearAttenuationPerMm(const std::string& compound, double density_g_cm3, double energy_kev);
 
 }  // namespace xgauge

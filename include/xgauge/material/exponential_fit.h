@@ -47,6 +47,11 @@ struct ExponentialFitOptions {
   // the axis so that I(0) = 1. Use fitExponentialTerms for it.
   bool free_amplitude = false;
 
+  // Largest transmission accepted in the data. A table computed from a model
+  // never exceeds 1 (beyond rounding); one measured from radiographs may,
+  // by its noise, near x = 0: raise this for measured data.
+  double max_transmission = 1.0 + 1e-9;
+
   // Budget of objective evaluations for each local search (each start and
   // the final polish). Must be >= 100.
   int max_evaluations_per_start = 3000;

@@ -65,7 +65,9 @@ WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
 
   // 1. Normalize; remove the scatter.
   RadiographSpec spec = job.radiograph;
-  spec.roi = machine.detectorRect();  // no part-shadow search: the ramp finder looks
+  // The whole image: the ramp finder below looks for the wedge itself (and
+  // says so clearly when there is none).
+  spec.roi = machine.detectorRect();
   const PreparedRadiograph prepared = prepareRadiograph(spec, machine);
   Image image = prepared.levels.front();
   if (job.scatter.enabled())

@@ -326,9 +326,12 @@ Image ForwardModel::pathLengths(std::span<const double> theta, int radiograph, i
 ScatterEstimate ForwardModel::scatter(std::span<const double> theta, int radiograph, int level) {
   XG_CHECK(job_.scatter.enabled(), "the job models no scatter");
   useMaterialOf(theta);
+  return scatterOf(posedMesh(theta, radiograph), radiograph, level);
+}
+
+ScatterEstimate ForwardModel::scatterOf(const WorldMesh& mesh, int radiograph, int level) {
   // The kernel is hundreds of pixels wide: a coarse render of the whole
   // detector carries all of G(I).
-  const WorldMesh mesh = posedMesh(theta, radiograph);
   const int coarse_level = std::max(level, levelForWidth(128));
   const Machine mc = machineAt(coarse_level);
   RenderOptions coarse_options;
@@ -364,7 +367,7 @@ Image ForwardModel::simulate(std::span<const double> theta, int radiograph, int 
 
   // Scintillator scatter, I' = (1 - w) I + w G(I), with the same
   // white-region normalization as the measured image.
-  const ScatterEstimate spread = scatter(theta, radiograph, level);
+  const ScatterEstimate spread = scatterOf(mesh, radiograph, level);
   const double w = job_.scatter.weight;
   for (int y = 0; y < out.height(); ++y)
     for (int x = 0; x < out.width(); ++x) {

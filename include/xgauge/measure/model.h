@@ -120,6 +120,7 @@ class ForwardModel {
   Machine machineAt(int level) const;
   // Poses the part for `radiograph` into world_vertices_.
   WorldMesh posedMesh(std::span<const double> theta, int radiograph);
+  ScatterEstimate scatterOf(const WorldMesh& mesh, int radiograph, int level);
   // Validates the dimensions, then calls use(radiograph, roi, simulated roi)
   // for each of `radiographs`; false (and no further calls) for parameters
   // the part or the beam cannot take.

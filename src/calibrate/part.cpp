@@ -162,15 +162,12 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
   ExponentialSum material = initial;
   for (int round = 0; round < job.rounds; ++round) {
     const Table table = tabulate(model, theta);
-    out.fit = fitCurve(table.path_mm, table.transmission, job.terms, table.noise, false,
-                       "calibration round " + std::to_string(round + 1));
-    const TermsFit& asked = out.fit.fits.back();  // the job's number of terms
+    const CurveFit fit = fitCurve(table.path_mm, table.transmission, job.terms, table.noise, false,
+                                  "calibration round " + std::to_string(round + 1));
+    const TermsFit& asked = fit.fits.back();  // the job's number of terms
     PartCalibrationRound r;
     r.report = asked.report;
     r.pixels = table.pixels;
-    out.path_mm = table.path_mm;
-    out.transmission = table.transmission;
-    out.max_path_mm = table.path_mm.back();
     if (round == 0) {
       // The joint fit starts from the table's fit.
       const ExponentialSum tabulated(asked.fitted, "fitted to the registered pixels");
@@ -187,12 +184,12 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
                                 fmt::format("calibrated from the known part in {} (round {})",
                                             job.measurement.file.filename().string(), round + 1));
     r.pose_loss = out.measurement.total_loss;
-    r.change = largestChange(material, r.material, out.max_path_mm);
+    r.change = largestChange(material, r.material, table.path_mm.back());
     spdlog::info(
         "round {}: {} pixels in {} bins up to {:.2f} mm, {}-term fit rms {:.3g} (noise {:.3g}); "
         "after the joint fit the material changed by {:.5f}",
-        round + 1, table.pixels, table.path_mm.size(), out.max_path_mm, asked.report.terms_used,
-        asked.report.rms_residual, table.noise, r.change);
+        round + 1, table.pixels, table.path_mm.size(), table.path_mm.back(),
+        asked.report.terms_used, asked.report.rms_residual, table.noise, r.change);
     material = r.material;
     out.rounds.push_back(r);
     if (round > 0 && r.change < kSettled) break;

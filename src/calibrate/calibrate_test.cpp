@@ -3,6 +3,7 @@
 #include "xgauge/calibrate/part.h"
 
 #include "core/expect_error.h"
+#include "image/test_folder.h"
 #include "xgauge/calibrate/ramp.h"
 #include "xgauge/calibrate/wedge.h"
 
@@ -28,18 +29,9 @@ const std::string kRoot = XGAUGE_SOURCE_DIR;
 
 class Calibrate : public ::testing::Test {
  protected:
-  void SetUp() override {
-    setProgressEnabled(false);
-    dir_ = fs::temp_directory_path() /
-           ("xgauge_calibrate_" +
-            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    if (!HasFailure()) fs::remove_all(dir_);
-  }
-  fs::path dir_;
+  void SetUp() override { setProgressEnabled(false); }
+  TestFolder folder_;
+  const fs::path dir_ = folder_.path();
 };
 
 double curve(double x) { return 0.6 * std::exp(-0.05 * x) + 0.4 * std::exp(-0.3 * x); }

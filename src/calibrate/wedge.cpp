@@ -32,10 +32,7 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
   const ConfigNode wedge = root.at("wedge");
   job.max_thickness_mm = wedge.at("max_thickness_mm").number(0.01, 1e4);
   job.ramp_length_mm = wedge.at("ramp_length_mm").number(0.1, 1e5);
-  if (auto scatter = root.find("scatter")) {
-    job.scatter.weight = scatter->at("weight").number(0.0, 0.9);
-    job.scatter.sigma_mm = scatter->at("sigma_mm").number(0.01, 1e4);
-  }
+  if (auto scatter = root.find("scatter")) job.scatter = scatterModelFromConfig(*scatter);
   if (auto ramp = root.find("ramp")) {
     if (auto columns = ramp->find("columns")) {
       if (columns->size() != 2) columns->fail("expected [begin, end]");

@@ -20,6 +20,13 @@ std::string_view acquisitionName(Acquisition pattern) {
   return "?";
 }
 
+ScatterModel scatterModelFromConfig(const ConfigNode& node) {
+  ScatterModel out;
+  out.weight = node.at("weight").number(0.0, 0.9);
+  out.sigma_mm = node.at("sigma_mm").number(0.01, 1e4);
+  return out;
+}
+
 PixelRect pixelRectFromConfig(const ConfigNode& node) {
   if (node.size() != 4) node.fail("expected [x, y, width, height]");
   PixelRect r;
@@ -118,10 +125,7 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
           .fail(fmt::format("start {} lies outside the bounds [{}, {}]", value, b[0], b[1]));
   }
 
-  if (auto scatter = root.find("scatter")) {
-    job.scatter.weight = scatter->at("weight").number(0.0, 0.9);
-    job.scatter.sigma_mm = scatter->at("sigma_mm").number(0.01, 1e4);
-  }
+  if (auto scatter = root.find("scatter")) job.scatter = scatterModelFromConfig(*scatter);
 
   // Radiographs.
   const ConfigNode list = root.at("radiographs");

@@ -91,6 +91,9 @@ struct MeasurementJob {
                                    bool needs_material);
 };
 
+// {"weight": w in [0, 0.9], "sigma_mm": s in [0.01, 1e4]} (Error at the node otherwise).
+ScatterModel scatterModelFromConfig(const ConfigNode& node);
+
 // [x, y, width, height] in whole pixels, not empty (Error at the node otherwise).
 PixelRect pixelRectFromConfig(const ConfigNode& node);
 

@@ -17,6 +17,7 @@ packages=(
   libfmt-dev libspdlog-dev
   libstb-dev           # PNG previews (stb_image_write)
   libgtest-dev libgmock-dev libbenchmark-dev
+  python3-jsonschema   # tests/validate_schemas.py: JSON files against docs/schemas
   clang-format
 )
 

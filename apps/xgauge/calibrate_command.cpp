@@ -42,10 +42,14 @@ void addCalibrateCommand(CLI::App& app, CalibrateArguments& wedge, CalibrateArgu
   CLI::App* cmd =
       app.add_subcommand("calibrate", "Calibrate the material curve I(x) from radiographs");
   cmd->require_subcommand(1);
-  addArguments(cmd->add_subcommand("wedge", "From one radiograph of a wedge (thesis 3.4a)"), wedge);
-  addArguments(
-      cmd->add_subcommand("part", "From radiographs of a part of known dimensions (thesis 3.4b)"),
-      part);
+  addArguments(cmd->add_subcommand("wedge",
+                                   "From one radiograph of a wedge "
+                                   "(thesis 3.4a, docs/method.md)"),
+               wedge);
+  addArguments(cmd->add_subcommand("part",
+                                   "From radiographs of a part of known dimensions "
+                                   "(thesis 3.4b, docs/method.md)"),
+               part);
 }
 
 void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,

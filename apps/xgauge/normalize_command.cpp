@@ -13,8 +13,10 @@
 namespace xgauge::cli {
 
 void addNormalizeCommand(CLI::App& app, NormalizeArguments& args) {
-  CLI::App* cmd = app.add_subcommand(
-      "normalize", "Normalize a raw radiograph: dark/flat correction, then a white region (eq. 3.9)");
+  CLI::App* cmd =
+      app.add_subcommand("normalize",
+                         "Normalize a raw radiograph: dark/flat correction, then a white region "
+                         "(thesis eq. 3.9, docs/method.md)");
   cmd->add_option("raw", args.raw, "Raw radiograph (TIFF)")->required();
   auto* dark = cmd->add_option("--dark", args.dark, "Dark frame (TIFF)");
   auto* flat = cmd->add_option("--flat", args.flat, "Flat (open-beam) frame (TIFF)");

@@ -1,6 +1,6 @@
-// The shipped part files (parts/*.json) against PARTS.md: names, order and
+// The shipped part files (parts/*.json) against docs/conventions.md: names, order and
 // nominal values of the dimensions, vertex positions and closed-form volumes
-// computed here from PARTS.md's own formulas.
+// computed here from docs/conventions.md's own formulas.
 #include "xgauge/geometry/part_model.h"
 
 #include <fmt/ranges.h>
@@ -70,7 +70,7 @@ TEST(Parts, EveryValidSampleGivesAClosedOutwardMesh) {
 // ---------------------------------------------------------------------------
 // Prism jaw
 
-struct Prism {  // PARTS.md symbols, in the order of the part's dimensions
+struct Prism {  // docs/conventions.md symbols, in the order of the part's dimensions
   double W, c, T, g, a_l, a_r, s_w, s_d;
   std::vector<double> values() const { return {W, c, T, g, a_l, a_r, s_w, s_d}; }
 };
@@ -78,7 +78,7 @@ constexpr Prism kPrismA = {20.977, 10.438, 13.020, 6.923, 6.848, 6.963, 4.104, 3
 constexpr Prism kPrismB = {20.951, 10.462, 10.048, 5.204, 5.101, 5.219, 3.052, 2.903};
 constexpr double kPrismLength = 40.0;
 
-// P0..P9 of PARTS.md, (x, z).
+// P0..P9 of docs/conventions.md, (x, z).
 std::vector<Vec2> prismProfile(const Prism& p) {
   return {{0, 0},
           {p.W, 0},
@@ -170,7 +170,7 @@ TEST(Parts, PrismJawConstraintsFromPartsMd) {
 // ---------------------------------------------------------------------------
 // Wedge block
 
-struct Wedge {  // PARTS.md table order
+struct Wedge {  // docs/conventions.md table order
   double T, thin, plt, prt, wlt, wrt, wlm, wrm, plm, prm;
   std::vector<double> values() const { return {T, thin, plt, prt, wlt, wrt, wlm, wrm, plm, prm}; }
 };

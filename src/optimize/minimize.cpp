@@ -445,9 +445,10 @@ OptimizeResult minimize(const Objective& objective, const OptimizeOptions& optio
       default:
         end = runNlopt(options.method, options, ev, step);
     }
-    // Thesis 3.8: restart a local method that stopped early from its best
-    // point, with half the previous first step, while budget remains and the
-    // step is still above x_tolerance (else the restart could not move).
+    // Thesis 3.8 (docs/method.md): restart a local method that stopped early
+    // from its best point, with half the previous first step, while budget
+    // remains and the step is still above x_tolerance (else the restart could
+    // not move).
     const bool early = end->termination == Termination::kConverged ||
                        end->termination == Termination::kStoppedEarly;
     const double min_step = std::max(options.x_tolerance, kMinStep);

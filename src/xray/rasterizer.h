@@ -14,7 +14,7 @@
 // magnification m, and m is an affine function of the projected position over
 // a planar triangle (perspective-correct interpolation). The path length
 // through the part is |P - S| * sum_i sigma_i / m_i(P), sigma = +1 for an
-// exit and -1 for an entry (Vidal et al. 2009; METHOD.md component 4).
+// exit and -1 for an entry (Vidal et al. 2009; docs/method.md, "Renderer").
 //
 // Work. Each triangle is scanned along its bounding box's shorter axis (rows
 // or columns), so thin slivers cost little; each scan line's span comes from

@@ -143,7 +143,7 @@ TEST(Renderer, CuboidSilhouetteIsTheProjectionOfItsCorners) {
   EXPECT_GT(outside, 5000);
 }
 
-// The prism jaw as three convex prisms (PARTS.md profile), for an independent
+// The prism jaw as three convex prisms (docs/conventions.md profile), for an independent
 // path length: a bottom slab and the two blocks left and right of the slot.
 struct ConvexPrism {
   std::vector<Vec2> profile;  // (x, z), counter-clockwise

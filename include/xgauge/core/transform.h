@@ -1,4 +1,4 @@
-// Vectors and rigid transforms (Eigen). Frames follow PARTS.md: a part pose
+// Vectors and rigid transforms (Eigen). Frames follow docs/conventions.md: a part pose
 // maps part coordinates to world coordinates, x_world = R * x_part + t.
 #pragma once
 

@@ -1,7 +1,7 @@
 // Parametric part models: a triangle mesh whose topology is fixed and whose
 // vertex positions are functions of named dimensions, described in a JSON
 // file so that a new part needs no recompilation (see parts/*.json and
-// PARTS.md for the reference parts).
+// docs/conventions.md for the reference parts, docs/formats.md for the file).
 //
 // File format (lengths in mm, angles in degrees; every key is checked, a
 // misspelled one is an error):
@@ -76,7 +76,7 @@ struct Dimension {
   double max = 0.0;
   std::string unit;         // "mm" or "deg"
   std::string description;  // may be empty
-  std::string thesis;       // the thesis's symbol, such as "θ8"; may be empty
+  std::string thesis;       // the thesis's symbol, "θ8" (docs/conventions.md); may be empty
 };
 
 class PartModel {

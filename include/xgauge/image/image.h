@@ -1,7 +1,7 @@
 // A single-channel image with row-major storage, and rectangles of pixels.
 //
 // Pixel (x, y) = (column u, row v), row 0 at the top as images are stored
-// (PARTS.md). The pixel centre of (u, v) sits at continuous coordinate
+// (docs/conventions.md). The pixel centre of (u, v) sits at continuous coordinate
 // (u + 0.5, v + 0.5).
 #pragma once
 

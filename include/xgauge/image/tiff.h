@@ -3,7 +3,7 @@
 // Pixel values are returned and accepted as float in the file's own units
 // (detector ADU for raw images, 1.0 = unattenuated for normalized ones); no
 // scaling happens here. Row 0 is the first row stored in the file, which is
-// the top of the image (PARTS.md); the Orientation tag is not applied.
+// the top of the image (docs/conventions.md); the Orientation tag is not applied.
 //
 // Every problem with a file throws xgauge::Error whose location names the
 // file. libtiff's own messages are collected per open file (TIFFOpenExt) and

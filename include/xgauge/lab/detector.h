@@ -1,6 +1,6 @@
 // The detector of the virtual X-ray lab: light spreading in the scintillator,
 // and the noise and fixed-pattern artefacts of an indirect flat panel
-// (METHOD.md, "What the real data looked like").
+// (docs/method.md, "The thesis's set-up and data").
 //
 // Pipeline of one simulated radiograph:
 //
@@ -52,8 +52,9 @@ namespace xgauge {
 // effect switches off with a zero (or false); switching one off does not
 // change the random numbers of the others.
 //
-// The defaults mimic METHOD.md: a 16-bit panel with a dark level of 4000 ADU,
-// an open beam about 52000 ADU, and per-pixel noise of about 0.65 % in a flat
+// The defaults mimic the thesis's panel (docs/method.md): 16 bit, a dark
+// level of 4000 ADU, an open beam about 52000 ADU, and per-pixel noise of
+// about 0.65 % in a flat
 // area after normalising by a white region (photon noise 0.5 % and pixel gain
 // 0.4 %), so normalised values there reach down to about 0.977 as in the
 // thesis's figure 5.11.

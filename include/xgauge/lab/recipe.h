@@ -43,7 +43,7 @@ namespace xgauge {
 // One radiograph to simulate, with its exact pose.
 struct ShotPlan {
   std::string name;     // file stem, e.g. "t03", "r05", "calibration"
-  std::string pattern;  // "translated" | "rotated" | "free" (PARTS.md acquisition patterns)
+  std::string pattern;  // "translated" | "rotated" | "free" (docs/conventions.md patterns)
   std::string reference;       // for "translated": the shot it is translated from
   double distance_mm = 0.0;    // for "translated": the exact distance from `reference`
   Vec3 axis = Vec3::Zero();    // for "translated": the unit axis (truth; unknown to a fit)

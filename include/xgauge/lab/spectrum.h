@@ -120,8 +120,9 @@ class Spectrum {
 std::vector<EmissionLine> tungstenLines(double tube_kv);
 
 // Source, filtration and detector of a radiograph: what sets the energy
-// weighting of the signal. Defaults describe the thesis set-up (220 kV
-// tungsten tube, 1 mm Be window + 1 mm Al, Al entrance window, CsI panel).
+// weighting of the signal. Defaults describe the thesis set-up
+// (docs/method.md: 220 kV tungsten tube, 1 mm Be window + 1 mm Al, Al
+// entrance window, CsI panel).
 struct BeamModel {
   double tube_kv = 220.0;
   double bin_kev = 0.5;

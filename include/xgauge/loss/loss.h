@@ -1,6 +1,6 @@
 // Image losses between a simulated and a measured radiograph over a region of
-// interest (thesis 3.7, eq. 3.13: the mean absolute per-pixel difference; the
-// caller sums it over radiographs).
+// interest (thesis 3.7, eq. 3.13, docs/method.md: the mean absolute per-pixel
+// difference; the caller sums it over radiographs).
 //
 // Contract shared by every function here:
 //   - `measured` is the whole normalized radiograph; `roi` is a rectangle of

@@ -1,6 +1,6 @@
 // Fitting the exponential-sum material model (exponential_sum.h) to a
 // measured transmission curve T(x), e.g. a wedge's intensity table (thesis
-// 3.4, calibration (a)):
+// 3.4, calibration (a); docs/method.md):
 //
 //   min over a, mu   sum_i w_i^2 (sum_k a_k exp(-mu_k x_i) - T_i)^2
 //   subject to       a_k >= 0,  sum_k a_k = 1,  mu_k >= 0.
@@ -88,7 +88,7 @@ std::vector<ExponentialTerm> fitExponentialTerms(std::span<const double> path_mm
                                                  const ExponentialFitOptions& options = {},
                                                  ExponentialFitReport* report = nullptr);
 
-// Thesis eq. 3.7, the shift and scale of a wedge fit I(x) = sum_k a_k
+// Thesis eq. 3.7 (docs/method.md), the shift and scale of a wedge fit I(x) = sum_k a_k
 // exp(-mu_k x) whose sum of weights need not be 1: find x0 with I(x0) = 1
 // (x0 < 0 when the thin end of the wedge was thicker than the 0 mm it was
 // taken for), then

@@ -1,5 +1,6 @@
 // The material model: the whole source-material-detector chain as a sum of
-// exponentials in the path length x (mm) through the part (thesis 3.4):
+// exponentials in the path length x (mm) through the part (thesis 3.4,
+// docs/method.md):
 //
 //   I(x) = sum_k a_k exp(-mu_k x),   a_k > 0,  sum_k a_k = 1,  mu_k >= 0,
 //

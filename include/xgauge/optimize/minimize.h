@@ -1,7 +1,7 @@
 // Box-constrained, derivative-free minimisation: the one interface every
-// fitting stage of xgauge uses (thesis 3.8). The objective is a loss between
-// simulated and measured radiographs: no derivatives, a few ms per
-// evaluation, noisy at about 1e-6, 1 to 30 parameters.
+// fitting stage of xgauge uses (thesis 3.8, docs/method.md). The objective is
+// a loss between simulated and measured radiographs: no derivatives, a few ms
+// per evaluation, noisy at about 1e-6, 1 to 30 parameters.
 //
 //   minimize f(x)  subject to  lower <= x <= upper.
 //

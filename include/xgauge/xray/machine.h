@@ -1,4 +1,4 @@
-// Projection geometry as plain data (PARTS.md frames).
+// Projection geometry as plain data (docs/conventions.md frames; the files: docs/formats.md).
 //
 // World frame: detector plane z = 0, X-ray source (focal spot centre) at
 // (0, 0, D). Seen from the source, world x points right and y up. Detector

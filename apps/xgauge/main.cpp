@@ -12,6 +12,7 @@
 #include "xgauge/core/log.h"
 #include "xgauge/core/parallel.h"
 #include "xgauge/core/progress.h"
+#include "xgauge/version.h"
 
 #include <CLI/CLI.hpp>
 
@@ -20,7 +21,7 @@
 
 int main(int argc, char** argv) {
   CLI::App app{"xgauge: dimensional measurement of parts from a few X-ray radiographs"};
-  app.set_version_flag("--version", "xgauge 0.1.0");
+  app.set_version_flag("--version", "xgauge " XGAUGE_VERSION_STRING);
   app.require_subcommand(1);
   app.fallthrough();  // global flags (-q, -j) may follow the subcommand too
   bool quiet = false, verbose = false;

@@ -4,7 +4,9 @@
 #include "xgauge/core/config.h"
 #include "xgauge/material/exponential_fit.h"
 #include "xgauge/measure/job.h"
+#include "xgauge/measure/inputs.h"
 #include "xgauge/measure/measure.h"
+#include "xgauge/measure/model.h"
 #include "xgauge/measure/truth.h"
 
 #include <spdlog/sinks/ostream_sink.h>
@@ -24,7 +26,7 @@ void addMeasureCommand(CLI::App& app, MeasureArguments& args) {
 }
 
 void runMeasure(const MeasureArguments& args) {
-  const MeasurementJob job = MeasurementJob::load(args.job);
+  const MeasurementInputs inputs = loadMeasurementInputs(args.job);
   std::optional<DatasetTruth> truth;
   if (!args.truth.empty()) truth = DatasetTruth::load(args.truth);
 
@@ -33,7 +35,8 @@ void runMeasure(const MeasureArguments& args) {
   auto sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log);
   sink->set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%l] %v");
   spdlog::default_logger()->sinks().push_back(sink);
-  const MeasurementResult result = measure(job);
+  ForwardModel model(inputs);
+  const MeasurementResult result = measure(model, model.start());
 
   std::string table = fmt::format("{:<18} {:>10}", "dimension", "measured");
   if (truth) table += fmt::format(" {:>10} {:>10}", "true", "error");
@@ -48,7 +51,7 @@ void runMeasure(const MeasureArguments& args) {
   std::fputs(table.c_str(), stdout);
   spdlog::info("{} evaluations in {:.1f} s; final loss {:.6g}", result.evaluations, result.seconds,
                result.total_loss);
-  writeMeasurementOutputs(job, result, args.output);
+  writeMeasurementOutputs(model, result, args.output);
   spdlog::default_logger()->sinks().pop_back();
   writeFileAtomically(std::filesystem::path(args.output) / "measure.log", log.str() + table);
   spdlog::info("wrote {}/result.json", args.output);

@@ -1,14 +1,15 @@
 #include "normalize_command.h"
 
 #include "xgauge/core/error.h"
-#include "xgauge/image/bad_pixels.h"
-#include "xgauge/image/normalize.h"
 #include "xgauge/image/preview.h"
 #include "xgauge/image/pyramid.h"
+#include "xgauge/image/radiograph.h"
 #include "xgauge/image/stats.h"
 #include "xgauge/image/tiff.h"
 
 #include <spdlog/spdlog.h>
+
+#include <optional>
 
 namespace xgauge::cli {
 
@@ -31,34 +32,29 @@ void addNormalizeCommand(CLI::App& app, NormalizeArguments& args) {
 }
 
 void runNormalize(const NormalizeArguments& args) {
-  Image image = readTiff(args.raw);
   if (args.dark.empty() && args.white.empty())
     fail("give --dark and --flat, or --white, or both: otherwise there is nothing to normalize by");
-  if (!args.dark.empty()) {
-    const Image dark = readTiff(args.dark), flat = readTiff(args.flat);
-    int64_t repaired = 0;
-    try {
-      image = flatFieldCorrectRepairing(image, dark, flat, &repaired);
-    } catch (const Error& e) {
-      fail("{} with {} and {}: {}", args.raw, args.dark, args.flat, e.message());
-    }
-    spdlog::info("flat-field corrected; {} bad pixels repaired from their neighbours", repaired);
-  }
-  if (!args.white.empty()) {
-    const PixelRect white{args.white[0], args.white[1], args.white[2], args.white[3]};
-    if (!image.rect().contains(white) || white.empty())
-      fail("--white {} is not a non-empty region inside the {}x{} image", toString(white),
-           image.width(), image.height());
+  std::optional<Image> dark, flat;
+  if (!args.dark.empty()) dark = readTiff(args.dark), flat = readTiff(args.flat);
+  std::optional<PixelRect> white;
+  if (!args.white.empty()) white = PixelRect{args.white[0], args.white[1], args.white[2], args.white[3]};
+  NormalizedRadiograph normalized = normalizeRadiograph(
+      readTiff(args.raw), {dark ? &*dark : nullptr, flat ? &*flat : nullptr}, white,
+      ClampPolicy::kNone, args.raw);
+  if (dark)
+    spdlog::info("flat-field corrected; {} bad pixels repaired from their neighbours",
+                 normalized.repaired_pixels);
+  if (white) {
     // The spread of the open beam, before the clamp hides its upper half.
-    const double mean = meanOf(image, white);
-    const Image region = image.crop(white);
+    const Image region = normalized.image.crop(*white);
     spdlog::info("white region: mean {:.6g}; normalized min / 0.1 / 50 / 99.9 % / max: "
                  "{:.4f} / {:.4f} / {:.4f} / {:.4f} / {:.4f} (before clamping)",
-                 mean, percentileOf(region, 0.0) / mean, percentileOf(region, 0.1) / mean,
-                 percentileOf(region, 50.0) / mean, percentileOf(region, 99.9) / mean,
-                 percentileOf(region, 100.0) / mean);
-    image = normalizeByWhiteRegion(image, white);
+                 normalized.white_mean, percentileOf(region, 0.0), percentileOf(region, 0.1),
+                 percentileOf(region, 50.0), percentileOf(region, 99.9),
+                 percentileOf(region, 100.0));
+    clampToOne(normalized.image);
   }
+  const Image& image = normalized.image;
   writeTiff(args.output, image, TiffFormat::kFloat32);
   spdlog::info("wrote {}", args.output);
   if (!args.png.empty()) {

@@ -2,6 +2,7 @@
 
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/image/plot.h"
+#include "xgauge/version.h"
 
 #include <spdlog/spdlog.h>
 
@@ -85,7 +86,7 @@ void writeCalibrationOutputs(const std::filesystem::path& folder, const Exponent
   }
   writePlotPng(folder / "calibration.png", figure);
 
-  figures["software"] = "xgauge 0.1.0";
+  figures["software"] = "xgauge " XGAUGE_VERSION_STRING;
   writeFileAtomically(folder / "calibration.json", figures.dump(2) + "\n");
   writeFileAtomically(folder / "material.json", material.toJson().dump(2) + "\n");
 }

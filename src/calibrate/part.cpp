@@ -28,15 +28,15 @@ struct Table {
 
 Table tabulate(ForwardModel& model, const std::vector<double>& theta) {
   const int level = model.levelForWidth(2048);
-  const double w = model.job().scatter.weight;
+  const ScatterModel& scatter = model.job().scatter;
   std::vector<std::pair<double, double>> pairs;
-  for (int r = 0; r < static_cast<int>(model.radiographs().size()); ++r) {
-    const PreparedRadiograph& rad = model.radiographs()[static_cast<size_t>(r)];
+  for (int r = 0; r < model.radiographCount(); ++r) {
+    const PreparedRadiograph& rad = model.radiograph(r);
     const PixelRect roi = rad.rois[static_cast<size_t>(level)];
     const Image& measured = rad.levels[static_cast<size_t>(level)];
     const Image path = model.pathLengths(theta, r, level, roi);
     std::optional<ScatterEstimate> spread;
-    if (model.job().scatter.enabled()) spread = model.scatter(theta, r, level);
+    if (scatter.enabled()) spread = model.scatter(theta, r, level);
     auto p = [&](int x, int y) { return static_cast<double>(path(x, y)); };
     for (int y = 2; y + 2 < roi.height; ++y)
       for (int x = 2; x + 2 < roi.width; ++x) {
@@ -52,7 +52,7 @@ Table tabulate(ForwardModel& model, const std::vector<double>& theta) {
         double intensity = static_cast<double>(measured(roi.x + x, roi.y + y));
         if (spread) {
           const double g = spread->at(roi.x + x + 0.5, roi.y + y + 0.5);
-          intensity = (intensity * spread->open - w * g) / (1.0 - w);
+          intensity = scatter.unmix(intensity, g, spread->open);
         }
         pairs.push_back({p(x, y), intensity});
       }
@@ -103,9 +103,9 @@ double largestChange(const ExponentialSum& a, const ExponentialSum& b, double ma
 PartCalibrationJob PartCalibrationJob::load(const std::filesystem::path& path) {
   const ConfigNode root = ConfigNode::loadFile(path);
   PartCalibrationJob job;
-  job.measurement = MeasurementJob::fromConfig(root, path, false);
   if (root.has("material"))
     root.at("material").fail("a calibration finds the material: leave \"material\" out");
+  job.inputs = std::make_shared<const MeasurementInputs>(loadMeasurementInputs(root, path, false));
   const ConfigNode c = root.at("calibration");
   job.terms = static_cast<int>(c.get<double>("terms", 3.0));
   if (job.terms < 1 || job.terms > 4) c.at("terms").fail("expected 1 to 4");
@@ -114,8 +114,8 @@ PartCalibrationJob PartCalibrationJob::load(const std::filesystem::path& path) {
   const ConfigNode initial = c.at("initial");
   const std::string name = initial.get<std::string>("radiograph");
   job.initial_radiograph = -1;
-  for (size_t k = 0; k < job.measurement.radiographs.size(); ++k)
-    if (job.measurement.radiographs[k].name == name) job.initial_radiograph = static_cast<int>(k);
+  for (size_t k = 0; k < job.measurement().radiographs.size(); ++k)
+    if (job.measurement().radiographs[k].name == name) job.initial_radiograph = static_cast<int>(k);
   if (job.initial_radiograph < 0)
     initial.at("radiograph").fail(fmt::format("no radiograph named '{}'", name));
   job.initial_region = pixelRectFromConfig(initial.at("region"));
@@ -130,11 +130,10 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
 
   // 1. Eq. 3.8 from the uniform region.
   const RadiographSpec& spec =
-      job.measurement.radiographs[static_cast<size_t>(job.initial_radiograph)];
-  const Machine machine = Machine::load(job.measurement.machine_file);
+      job.measurement().radiographs[static_cast<size_t>(job.initial_radiograph)];
   {
-    const PreparedRadiograph prepared = prepareRadiograph(spec, machine);
-    const Image& image = prepared.levels.front();
+    const Image& image =
+        job.inputs->radiographs[static_cast<size_t>(job.initial_radiograph)]->levels.front();
     if (!image.rect().contains(job.initial_region))
       fail("{}: the initial region {} lies outside the {}x{} image", spec.image.string(),
            toString(job.initial_region), image.width(), image.height());
@@ -151,7 +150,7 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
                out.initial_intensity, job.initial_path_mm, out.initial_mu_per_mm);
 
   // 2. Poses with that material.
-  ForwardModel model(job.measurement, initial);
+  ForwardModel model(*job.inputs, initial);
   std::vector<double> theta = model.start();
   out.measurement = measure(model, theta);
   theta = out.measurement.theta;
@@ -182,7 +181,7 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
     r.material = model.materialOf(theta);
     r.material = ExponentialSum(r.material.terms(),
                                 fmt::format("calibrated from the known part in {} (round {})",
-                                            job.measurement.file.filename().string(), round + 1));
+                                            job.measurement().file.filename().string(), round + 1));
     r.pose_loss = out.measurement.total_loss;
     r.change = largestChange(material, r.material, table.path_mm.back());
     spdlog::info(
@@ -208,7 +207,7 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
       out.fit.best().fitted,
       fmt::format("calibrated from the known part of {}: {} exponentials fitted to {} pixels in {} "
                   "path bins up to {:.2f} mm at the jointly fitted poses",
-                  job.measurement.file.filename().string(), out.fit.best().report.terms_used,
+                  job.measurement().file.filename().string(), out.fit.best().report.terms_used,
                   table.pixels, table.path_mm.size(), out.max_path_mm));
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
@@ -229,10 +228,10 @@ void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& 
     poses.push_back({{"name", r.name}, {"pose", poseToJson(r.pose)}, {"loss", r.loss}});
   const nlohmann::json figures = {
       {"kind", "part"},
-      {"job", job.measurement.file.string()},
+      {"job", job.measurement().file.string()},
       {"initial",
        {{"radiograph",
-         job.measurement.radiographs[static_cast<size_t>(job.initial_radiograph)].name},
+         job.measurement().radiographs[static_cast<size_t>(job.initial_radiograph)].name},
         {"region",
          {job.initial_region.x, job.initial_region.y, job.initial_region.width,
           job.initial_region.height}},
@@ -256,9 +255,10 @@ void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& 
 
   // The last pose fit, with the calibrated material: the residual images show
   // what the model does not explain (thesis Figure 5.5).
-  MeasurementJob measurement = job.measurement;
-  measurement.material_file = folder / "material.json";
-  writeMeasurementOutputs(measurement, result.measurement, folder / "poses");
+  ForwardModel model(*job.inputs, result.material);
+  MeasurementResult fitted = result.measurement;
+  fitted.theta.resize(static_cast<size_t>(model.size()));  // without the free material's parameters
+  writeMeasurementOutputs(model, fitted, folder / "poses");
 }
 
 }  // namespace xgauge

@@ -3,7 +3,9 @@
 #include "xgauge/calibrate/output.h"
 #include "xgauge/core/config.h"
 #include "xgauge/image/blur.h"
-#include "xgauge/measure/model.h"
+#include "xgauge/image/radiograph.h"
+#include "xgauge/image/tiff.h"
+#include "xgauge/measure/job.h"
 #include "xgauge/xray/machine.h"
 
 #include <spdlog/spdlog.h>
@@ -32,7 +34,7 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
   const ConfigNode wedge = root.at("wedge");
   job.max_thickness_mm = wedge.at("max_thickness_mm").number(0.01, 1e4);
   job.ramp_length_mm = wedge.at("ramp_length_mm").number(0.1, 1e5);
-  if (auto scatter = root.find("scatter")) job.scatter = scatterModelFromConfig(*scatter);
+  if (auto scatter = root.find("scatter")) job.scatter = ScatterModel::fromConfig(*scatter);
   if (auto ramp = root.find("ramp")) {
     if (auto columns = ramp->find("columns")) {
       if (columns->size() != 2) columns->fail("expected [begin, end]");
@@ -50,26 +52,29 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
   if (job.margin_rows < 0 || job.margin_rows > 1000)
     root.at("margin_rows").fail("expected 0 to 1000");
   root.finish();
-  Machine::load(job.machine_file);  // errors name the machine file now
+  job.machine = Machine::load(job.machine_file);
   return job;
 }
 
 WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
   const auto start = std::chrono::steady_clock::now();
-  const Machine machine = Machine::load(job.machine_file);
+  const Machine& machine = job.machine;
   const std::string name = job.radiograph.image.string();
   WedgeCalibration out;
 
-  // 1. Normalize; remove the scatter.
-  RadiographSpec spec = job.radiograph;
-  // The whole image: the ramp finder below looks for the wedge itself (and
-  // says so clearly when there is none).
-  spec.roi = machine.detectorRect();
-  const PreparedRadiograph prepared = prepareRadiograph(spec, machine);
-  Image image = prepared.levels.front();
-  if (job.scatter.enabled())
-    image = removeScatter(image, job.scatter.weight, job.scatter.sigma_mm / machine.pitch_u_mm,
-                          spec.white_region);
+  // 1. Normalize (the whole image: the ramp finder below looks for the wedge
+  // itself, and says so clearly when there is none); remove the scatter.
+  const RadiographSpec& spec = job.radiograph;
+  std::optional<Image> dark, flat;
+  if (!spec.dark.empty()) dark = readTiff(spec.dark), flat = readTiff(spec.flat);
+  Image raw = readTiff(spec.image);
+  if (raw.width() != machine.columns || raw.height() != machine.rows)
+    fail("{} is {}x{} pixels but the machine's detector is {}x{}", name, raw.width(),
+         raw.height(), machine.columns, machine.rows);
+  Image image = normalizeRadiograph(std::move(raw), {dark ? &*dark : nullptr, flat ? &*flat : nullptr},
+                                    spec.white_region, ClampPolicy::kNone, name)
+                    .image;
+  if (job.scatter.enabled()) image = job.scatter.remove(image, machine.pitch_u_mm, spec.white_region);
 
   // 2. The ramp.
   out.ramp = detectRamp(image, job.ramp, name);

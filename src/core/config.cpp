@@ -1,5 +1,7 @@
 #include "xgauge/core/config.h"
 
+#include "xgauge/core/digest.h"
+
 #include <algorithm>
 #include <map>
 #include <cmath>
@@ -11,6 +13,7 @@ namespace xgauge {
 struct ConfigNode::Document {
   nlohmann::json root;
   std::string origin;
+  std::string sha256;             // of the file's bytes; empty for parsed text
   std::set<std::string> read;     // pointers whose value was looked up
   std::set<std::string> entered;  // pointers of objects whose keys were looked up
   std::set<std::string> whole;    // pointers read as a whole subtree
@@ -87,10 +90,15 @@ ConfigNode ConfigNode::loadFile(const std::filesystem::path& path) {
   std::stringstream buffer;
   buffer << in.rdbuf();
   if (in.bad()) throw Error("cannot read file", SourceLocation::inFile(path.string()));
-  return parse(buffer.str(), path.string());
+  const std::string text = buffer.str();
+  ConfigNode node = parse(text, path.string());
+  node.doc_->sha256 = sha256Hex(text);
+  return node;
 }
 
 const std::string& ConfigNode::file() const { return doc_->origin; }
+
+const std::string& ConfigNode::sha256() const { return doc_->sha256; }
 
 SourceLocation ConfigNode::where() const {
   return SourceLocation::at(doc_->origin, path_.empty() ? "/" : path_);

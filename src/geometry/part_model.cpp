@@ -145,7 +145,10 @@ PartModel& PartModel::operator=(PartModel&&) noexcept = default;
 PartModel::~PartModel() = default;
 
 PartModel PartModel::load(const std::filesystem::path& path) {
-  const ConfigNode root = ConfigNode::loadFile(path);
+  return fromConfig(ConfigNode::loadFile(path), path);
+}
+
+PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::path& path) {
   auto definition = std::make_shared<Definition>();
   Definition& d = *definition;
   d.name = path.stem().string();
@@ -281,37 +284,71 @@ std::vector<double> PartModel::values(const std::map<std::string, double>& overr
   return result;
 }
 
-void PartModel::validate(std::span<const double> values) const {
+// Why a part model cannot take some values: the message and where the rule
+// that is broken was written.
+struct PartModel::Invalidity {
+  std::string message;
+  SourceLocation where;
+};
+
+// One check behind validate() (throws) and invalidity() (reports).
+std::optional<PartModel::Invalidity> PartModel::findInvalidity(
+    std::span<const double> values) const {
   const Definition& d = *definition_;
+  Evaluator& evaluator = *evaluator_;
   XG_CHECK(values.size() == d.dimensions.size(), "{} values for {} dimensions", values.size(),
            d.dimensions.size());
-  for (size_t i = 0; i < values.size(); ++i)
-    requireWithinBounds(d.dimensions[i], values[i], d.name);
-  if (const ExpressionSource* bad = evaluator_->compute(d, values))
-    throw Error(fmt::format("expression '{}' is not finite at {}", bad->text, d.describe(values)),
-                bad->where);
-  for (size_t i = 0; i < d.constraints.size(); ++i) {
-    const double value = evaluator_->constraint(i);
-    if (!(value > 0))
-      throw Error(fmt::format("constraint violated: {} ({} = {}, must be > 0) at {}",
-                              d.constraints[i].message, d.constraints[i].expr.text, value,
-                              d.describe(values)),
-                  d.constraints[i].expr.where);
+  for (size_t i = 0; i < values.size(); ++i) {
+    const Dimension& dimension = d.dimensions[i];
+    if (!(values[i] >= dimension.min && values[i] <= dimension.max))
+      return Invalidity{fmt::format("{} = {} {} is outside its bounds [{}, {}] {} (part '{}')",
+                                    dimension.name, values[i], dimension.unit, dimension.min,
+                                    dimension.max, dimension.unit, d.name),
+                        {}};
   }
+  if (const ExpressionSource* bad = evaluator.compute(d, values))
+    return Invalidity{
+        fmt::format("expression '{}' is not finite at {}", bad->text, d.describe(values)),
+        bad->where};
+  for (size_t i = 0; i < d.constraints.size(); ++i) {
+    const double value = evaluator.constraint(i);
+    if (!(value > 0))
+      return Invalidity{fmt::format("constraint violated: {} ({} = {}, must be > 0) at {}",
+                                    d.constraints[i].message, d.constraints[i].expr.text, value,
+                                    d.describe(values)),
+                        d.constraints[i].expr.where};
+  }
+  return std::nullopt;
 }
 
-void PartModel::evaluate(std::span<const double> values, std::vector<Vec3>& out) const {
+void PartModel::validate(std::span<const double> values) const {
+  if (const auto bad = findInvalidity(values))
+    throw Error(bad->message, bad->where);
+}
+
+std::optional<std::string> PartModel::invalidity(std::span<const double> values) const {
+  if (const auto bad = findInvalidity(values)) return bad->message;
+  return std::nullopt;
+}
+
+std::optional<std::string> PartModel::tryEvaluate(std::span<const double> values,
+                                                  std::vector<Vec3>& out) const {
   const Definition& d = *definition_;
   XG_CHECK(values.size() == d.dimensions.size(), "{} values for {} dimensions", values.size(),
            d.dimensions.size());
   if (const ExpressionSource* bad = evaluator_->compute(d, values)) [[unlikely]]
-    throw Error(fmt::format("expression '{}' is not finite at {}", bad->text, d.describe(values)),
-                bad->where);
+    return fmt::format("expression '{}' is not finite at {}", bad->text, d.describe(values));
   out.resize(d.shape->vertexCount());
   d.shape->place(evaluator_->scalars(), out);
   if (const std::string_view fold = d.shape->fold(evaluator_->scalars()); !fold.empty())
       [[unlikely]]
-    throw Error(fmt::format("{} at {}", fold, d.describe(values)), d.shape_where);
+    return fmt::format("{} at {}", fold, d.describe(values));
+  return std::nullopt;
+}
+
+void PartModel::evaluate(std::span<const double> values, std::vector<Vec3>& out) const {
+  if (auto bad = tryEvaluate(values, out)) [[unlikely]]
+    throw Error(std::move(*bad), definition_->shape_where);
 }
 
 TriangleMesh PartModel::mesh(std::span<const double> values) const {

@@ -297,25 +297,4 @@ Image scatterBlur(Image image, double weight, double sigma_px) {
   return blurMix(std::move(image), sigma_px, weight);
 }
 
-Image removeScatter(const Image& normalized, double weight, double sigma_px, const PixelRect& white,
-                    int iterations) {
-  if (!(weight >= 0.0 && weight <= 0.9)) fail("scatter weight must be in [0, 0.9], got {}", weight);
-  if (white.empty() || !normalized.rect().contains(white))
-    fail("white region {} lies outside the {}x{} image", toString(white), normalized.width(),
-         normalized.height());
-  Image estimate = normalized;
-  if (weight == 0.0) return estimate;
-  for (int iteration = 0; iteration < iterations; ++iteration) {
-    const Image spread = gaussianBlur(estimate, sigma_px);
-    const double open = (1.0 - weight) + weight * meanOf(spread, white);
-    const auto n = normalized.pixels();
-    const auto g = spread.pixels();
-    auto out = estimate.pixels();
-    for (size_t i = 0; i < out.size(); ++i)
-      out[i] = static_cast<float>(
-          (static_cast<double>(n[i]) * open - weight * static_cast<double>(g[i])) / (1.0 - weight));
-  }
-  return estimate;
-}
-
 }  // namespace xgauge

@@ -1,4 +1,5 @@
 #include "xgauge/image/blur.h"
+#include "xgauge/image/scatter.h"
 
 #include "xgauge/core/error.h"
 #include "xgauge/image/stats.h"
@@ -159,7 +160,7 @@ TEST(GaussianBlur, LargeSigmaFollowsTheGaussianProfile) {
   }
 }
 
-TEST(RemoveScatter, UndoesScatterAndWhiteRegionNormalization) {
+TEST(ScatterModel, RemoveUndoesScatterAndWhiteRegionNormalization) {
   // A dark block on an open beam, scattered and normalized by a white region
   // as a measured radiograph is; removeScatter must return the block.
   Image truth(300, 200, 1.0f);
@@ -170,7 +171,8 @@ TEST(RemoveScatter, UndoesScatterAndWhiteRegionNormalization) {
   const double c = meanOf(measured, white);
   ASSERT_LT(c, 0.995);  // the scatter darkens the open beam too
   for (float& p : measured.pixels()) p = static_cast<float>(static_cast<double>(p) / c);
-  const Image recovered = removeScatter(measured, 0.139, 80.0, white);
+  // Pixels of 1 mm: sigma 80 px.
+  const Image recovered = ScatterModel{0.139, 80.0}.remove(measured, 1.0, white);
   double worst = 0.0, before = 0.0;
   for (int y = 0; y < truth.height(); ++y)
     for (int x = 0; x < truth.width(); ++x) {
@@ -180,9 +182,16 @@ TEST(RemoveScatter, UndoesScatterAndWhiteRegionNormalization) {
   EXPECT_GT(before, 0.02);
   EXPECT_LT(worst, 2e-5);
   // No scatter: a copy. Bad arguments: errors.
-  EXPECT_TRUE(identical(removeScatter(truth, 0.0, 80.0, white), truth));
-  EXPECT_THROW(removeScatter(truth, 0.95, 80.0, white), Error);
-  EXPECT_THROW(removeScatter(truth, 0.1, 80.0, PixelRect{290, 5, 30, 30}), Error);
+  EXPECT_TRUE(identical(ScatterModel{0.0, 80.0}.remove(truth, 1.0, white), truth));
+  EXPECT_THROW(ScatterModel({0.95, 80.0}).remove(truth, 1.0, white), Error);
+  EXPECT_THROW(ScatterModel({0.1, 80.0}).remove(truth, 1.0, PixelRect{290, 5, 30, 30}), Error);
+  // apply() is the forward formula mix() for every pixel.
+  const ScatterModel model{0.139, 80.0};
+  const Image forward = model.apply(truth, 1.0);
+  const Image blurred = gaussianBlur(truth, 80.0);
+  for (int y = 0; y < truth.height(); y += 7)
+    for (int x = 0; x < truth.width(); x += 7)
+      EXPECT_NEAR(forward(x, y), model.mix(truth(x, y), blurred(x, y)), 2e-6);
 }
 
 TEST(ScatterBlur, ShadowsBothSidesOfAnEdge) {

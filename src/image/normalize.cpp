@@ -7,24 +7,6 @@
 
 namespace xgauge {
 
-Image normalizeByWhiteRegion(const Image& raw, const PixelRect& white) {
-  if (white.empty() || !raw.rect().contains(white))
-    fail("white region {} is {} the {}x{} image", toString(white),
-         white.empty() ? "empty; it must cover pixels of" : "not inside", raw.width(),
-         raw.height());
-  const double white_mean = meanOf(raw, white);
-  if (!(white_mean > 0.0))
-    fail("the mean intensity in the white region {} is {}; it must be > 0", toString(white),
-         white_mean);
-
-  Image normalized(raw.width(), raw.height());
-  const auto in = raw.pixels();
-  const auto out = normalized.pixels();
-  for (size_t i = 0; i < in.size(); ++i)
-    out[i] = static_cast<float>(std::min(static_cast<double>(in[i]) / white_mean, 1.0));
-  return normalized;
-}
-
 Image flatFieldCorrect(const Image& raw, const Image& dark, const Image& flat) {
   if (raw.width() != dark.width() || raw.height() != dark.height() || raw.width() != flat.width() ||
       raw.height() != flat.height())

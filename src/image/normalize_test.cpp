@@ -1,4 +1,5 @@
 #include "xgauge/image/normalize.h"
+#include "xgauge/image/radiograph.h"
 
 #include <gtest/gtest.h>
 
@@ -11,7 +12,7 @@ bool contains(const std::string& text, const std::string& part) {
   return text.find(part) != std::string::npos;
 }
 
-TEST(NormalizeByWhiteRegion, DividesByWhiteMeanAndClampsAtOne) {
+TEST(NormalizeRadiograph, DividesByWhiteMeanAndClampsAtOne) {
   Image raw(6, 4, 1000.0f);
   // White region: columns 4..5, all rows, mean (3000 + 5000) / 2 = 4000.
   for (int y = 0; y < 4; ++y) {
@@ -19,29 +20,38 @@ TEST(NormalizeByWhiteRegion, DividesByWhiteMeanAndClampsAtOne) {
     raw(5, y) = 5000.0f;
   }
   raw(0, 0) = -400.0f;  // below zero stays below zero
-  const Image normalized = normalizeByWhiteRegion(raw, PixelRect{4, 0, 2, 4});
+  const NormalizedRadiograph out =
+      normalizeRadiograph(raw, {}, PixelRect{4, 0, 2, 4}, ClampPolicy::kAtOne, "raw.tif");
+  const Image& normalized = out.image;
+  EXPECT_EQ(out.white_mean, 4000.0);
   EXPECT_EQ(normalized(1, 1), 0.25f);
   EXPECT_EQ(normalized(4, 2), 0.75f);
   EXPECT_EQ(normalized(5, 2), 1.0f);  // 1.25 clamped
-  EXPECT_EQ(normalized(0, 0), -0.1f);
+  EXPECT_FLOAT_EQ(normalized(0, 0), -0.1f);
+  // Without the clamp the open beam's values above 1 stay.
+  EXPECT_EQ(normalizeRadiograph(raw, {}, PixelRect{4, 0, 2, 4}, ClampPolicy::kNone, "raw.tif")
+                .image(5, 2),
+            1.25f);
 }
 
-TEST(NormalizeByWhiteRegion, Errors) {
+TEST(NormalizeRadiograph, Errors) {
   const Image raw(64, 48, 10.0f);
   try {
-    normalizeByWhiteRegion(raw, PixelRect{60, 10, 8, 8});
+    normalizeRadiograph(raw, {}, PixelRect{60, 10, 8, 8}, ClampPolicy::kAtOne, "raw.tif");
     FAIL() << "expected an error";
   } catch (const Error& e) {
     EXPECT_TRUE(contains(e.what(), "{x=60, y=10, width=8, height=8}")) << e.what();
     EXPECT_TRUE(contains(e.what(), "64x48")) << e.what();
+    EXPECT_TRUE(contains(e.what(), "raw.tif")) << e.what();
   }
-  EXPECT_THROW(normalizeByWhiteRegion(raw, PixelRect{0, 0, 0, 8}), Error);
-  EXPECT_THROW(normalizeByWhiteRegion(raw, PixelRect{-1, 0, 4, 4}), Error);
+  EXPECT_THROW(normalizeRadiograph(raw, {}, PixelRect{0, 0, 0, 8}, ClampPolicy::kAtOne, "r"), Error);
+  EXPECT_THROW(normalizeRadiograph(raw, {}, PixelRect{-1, 0, 4, 4}, ClampPolicy::kAtOne, "r"),
+               Error);
   try {
-    normalizeByWhiteRegion(Image(8, 8, 0.0f), PixelRect{0, 0, 4, 4});
+    normalizeRadiograph(Image(8, 8, 0.0f), {}, PixelRect{0, 0, 4, 4}, ClampPolicy::kAtOne, "r");
     FAIL() << "expected an error";
   } catch (const Error& e) {
-    EXPECT_TRUE(contains(e.what(), "must be > 0")) << e.what();
+    EXPECT_TRUE(contains(e.what(), "must be positive")) << e.what();
   }
 }
 

@@ -1,5 +1,13 @@
 #include "xgauge/image/tiff.h"
 
+#include "xgauge/core/digest.h"
+
+#include <fcntl.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/core/error.h"
 #include "xgauge/core/log.h"
@@ -68,13 +76,51 @@ struct TiffCloser {
 };
 using TiffHandle = std::unique_ptr<TIFF, TiffCloser>;
 
-TiffHandle openTiff(const std::filesystem::path& path, const char* mode, TiffMessages& messages) {
-  std::unique_ptr<TIFFOpenOptions, decltype(&TIFFOpenOptionsFree)> options(TIFFOpenOptionsAlloc(),
-                                                                           &TIFFOpenOptionsFree);
+using OpenOptions = std::unique_ptr<TIFFOpenOptions, decltype(&TIFFOpenOptionsFree)>;
+
+OpenOptions openOptions(TiffMessages& messages) {
+  OpenOptions options(TIFFOpenOptionsAlloc(), &TIFFOpenOptionsFree);
   XG_CHECK(options != nullptr, "out of memory");
   TIFFOpenOptionsSetErrorHandlerExtR(options.get(), collectError, &messages);
   TIFFOpenOptionsSetWarningHandlerExtR(options.get(), collectWarning, &messages);
+  return options;
+}
+
+TiffHandle openTiff(const std::filesystem::path& path, const char* mode, TiffMessages& messages) {
+  const OpenOptions options = openOptions(messages);
   return TiffHandle(TIFFOpenExt(path.c_str(), mode, options.get()));
+}
+
+// Opens `path` for reading once: when `sha256` is given, the file's bytes are
+// hashed through the same descriptor before libtiff reads it, so the digest
+// is of exactly the file that was decoded.
+TiffHandle openTiffForReading(const std::filesystem::path& path, TiffMessages& messages,
+                              std::string* sha256, const SourceLocation& where) {
+  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC);
+  if (fd < 0) throw Error(fmt::format("cannot open the file: {}", std::strerror(errno)), where);
+  if (sha256) {
+    Sha256 hash;
+    std::vector<char> buffer(size_t{1} << 20);
+    for (;;) {
+      const ssize_t got = ::read(fd, buffer.data(), buffer.size());
+      if (got < 0) {
+        const int error = errno;
+        ::close(fd);
+        throw Error(fmt::format("cannot read the file: {}", std::strerror(error)), where);
+      }
+      if (got == 0) break;
+      hash.update(buffer.data(), static_cast<size_t>(got));
+    }
+    *sha256 = hash.hex();
+    if (::lseek(fd, 0, SEEK_SET) != 0) {
+      ::close(fd);
+      throw Error("cannot rewind the file", where);
+    }
+  }
+  const OpenOptions options = openOptions(messages);
+  TIFF* tif = TIFFFdOpenExt(fd, path.c_str(), "r", options.get());
+  if (!tif) ::close(fd);  // TIFFClose closes it otherwise
+  return TiffHandle(tif);
 }
 
 // " (libtiff: ...)" or nothing.
@@ -197,7 +243,7 @@ Image readSamples(TIFF* tif, uint32_t width, uint32_t height, const TiffMessages
 
 }  // namespace
 
-Image readTiff(const std::filesystem::path& path) {
+Image readTiff(const std::filesystem::path& path, std::string* sha256) {
   const SourceLocation where = SourceLocation::inFile(path.string());
   std::error_code ec;
   if (!std::filesystem::exists(path, ec))
@@ -205,7 +251,7 @@ Image readTiff(const std::filesystem::path& path) {
   if (std::filesystem::is_directory(path, ec)) throw Error("is a folder, not a TIFF file", where);
 
   TiffMessages messages{path.string(), {}, {}};
-  const TiffHandle tif = openTiff(path, "r", messages);
+  const TiffHandle tif = openTiffForReading(path, messages, sha256, where);
   if (!tif) failAt(where, "not a readable TIFF file{}", libtiffSays(messages));
 
   // Check the layout before touching the pixels.

@@ -1,7 +1,6 @@
 #include "xgauge/measure/job.h"
 
 #include "xgauge/core/config.h"
-#include "xgauge/geometry/part_model.h"
 #include "xgauge/xray/machine.h"
 
 namespace xgauge {
@@ -18,13 +17,6 @@ std::string_view acquisitionName(Acquisition pattern) {
       return "known";
   }
   return "?";
-}
-
-ScatterModel scatterModelFromConfig(const ConfigNode& node) {
-  ScatterModel out;
-  out.weight = node.at("weight").number(0.0, 0.9);
-  out.sigma_mm = node.at("sigma_mm").number(0.01, 1e4);
-  return out;
 }
 
 PixelRect pixelRectFromConfig(const ConfigNode& node) {
@@ -56,24 +48,21 @@ std::array<std::array<double, 2>, 3> ranges(const ConfigNode& node, double limit
 
 }  // namespace
 
-MeasurementJob MeasurementJob::load(const std::filesystem::path& path) {
-  const ConfigNode root = ConfigNode::loadFile(path);
-  MeasurementJob job = fromConfig(root, path, true);
-  root.finish();
-  return job;
+std::filesystem::path MeasurementJob::partFileOf(const ConfigNode& root,
+                                                 const std::filesystem::path& path) {
+  return path.parent_path() / root.get<std::string>("part");
 }
 
 MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::filesystem::path& path,
-                                          bool needs_material) {
+                                          const PartModel& model, bool needs_material) {
   const auto folder = path.parent_path();
   MeasurementJob job;
   job.file = path;
   job.description = root.get<std::string>("description", "");
-  job.part_file = folder / root.get<std::string>("part");
+  job.part_file = partFileOf(root, path);
   job.machine_file = folder / root.get<std::string>("machine");
   if (needs_material || root.has("material"))
     job.material_file = folder / root.get<std::string>("material");
-  const PartModel model = PartModel::load(job.part_file);
 
   // Dimensions: free ones, fixed values, starts, bounds; names checked against the model.
   auto known = [&](const ConfigNode& node, const std::string& name) {
@@ -125,7 +114,7 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
           .fail(fmt::format("start {} lies outside the bounds [{}, {}]", value, b[0], b[1]));
   }
 
-  if (auto scatter = root.find("scatter")) job.scatter = scatterModelFromConfig(*scatter);
+  if (auto scatter = root.find("scatter")) job.scatter = ScatterModel::fromConfig(*scatter);
 
   // Radiographs.
   const ConfigNode list = root.at("radiographs");
@@ -178,16 +167,15 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
   const ConfigNode bounds = root.at("pose_bounds");
   job.rotation_bounds_deg = ranges(bounds.at("rotation_deg"), 360.0);
   job.centre_bounds_mm = ranges(bounds.at("centre_mm"), 1e5);
-  job.schedule = root.get<std::string>("schedule", "default");
-  if (job.schedule != "default" && job.schedule != "thesis")
-    root.at("schedule")
-        .fail(fmt::format("unknown schedule '{}' (known: default, thesis)", job.schedule));
-  job.loss = root.get<std::string>("loss", "l1");
-  if (job.loss != "l1" && job.loss != "l2") root.at("loss").fail("expected \"l1\" or \"l2\"");
+  const std::string schedule = root.get<std::string>("schedule", "default");
+  const auto kind = scheduleKindFromName(schedule);
+  if (!kind)
+    root.at("schedule").fail(fmt::format("unknown schedule '{}' (known: default, thesis)", schedule));
+  job.schedule = *kind;
+  const std::string loss = root.get<std::string>("loss", "l1");
+  if (loss != "l1" && loss != "l2") root.at("loss").fail("expected \"l1\" or \"l2\"");
+  job.loss = lossKindFromName(loss);
   if (auto seed = root.find("seed")) job.seed = static_cast<uint64_t>(seed->number(0, 1e15));
-
-  // The machine must exist and be valid now, so errors name the job.
-  Machine::load(job.machine_file);
   return job;
 }
 

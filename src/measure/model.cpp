@@ -1,98 +1,12 @@
 #include "xgauge/measure/model.h"
 
-#include "xgauge/image/bad_pixels.h"
 #include "xgauge/image/blur.h"
-#include "xgauge/image/pyramid.h"
-#include "xgauge/image/stats.h"
-#include "xgauge/image/tiff.h"
 #include "xgauge/loss/loss.h"
-#include "xgauge/material/exponential_sum.h"
 #include "xgauge/xray/renderer.h"
-
-#include <spdlog/spdlog.h>
 
 #include <cmath>
 
 namespace xgauge {
-
-namespace {
-
-constexpr double kInvalidLoss = 1e6;  // parameters the part or the beam cannot take
-
-// `rect` (full-size pixels) at pyramid `level`, rounded outwards and clipped.
-PixelRect rectAtLevelOutward(const PixelRect& rect, int level, const Image& image) {
-  const int s = 1 << level;
-  const int x0 = rect.x / s, y0 = rect.y / s;
-  const int x1 = (rect.right() + s - 1) / s, y1 = (rect.bottom() + s - 1) / s;
-  return PixelRect{x0, y0, x1 - x0, y1 - y0}.intersect(image.rect());
-}
-
-// The part's shadow: where a coarse copy of the normalized image is below
-// 0.9, as a bounding box grown by 10 % of its size plus 8 pixels.
-PixelRect automaticRoi(const std::vector<Image>& levels, const RadiographSpec& spec) {
-  int level = 0;
-  while (level + 1 < static_cast<int>(levels.size()) &&
-         levels[static_cast<size_t>(level)].width() > 256)
-    ++level;
-  const Image& coarse = levels[static_cast<size_t>(level)];
-  int x0 = coarse.width(), y0 = coarse.height(), x1 = -1, y1 = -1;
-  for (int y = 0; y < coarse.height(); ++y)
-    for (int x = 0; x < coarse.width(); ++x)
-      if (coarse(x, y) < 0.9f)
-        x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
-  if (x1 < 0)
-    fail("{}: no part shadow found (no pixel below 0.9 of the open beam); give its roi",
-         spec.image.string());
-  const int s = 1 << level;
-  PixelRect r{x0 * s, y0 * s, (x1 - x0 + 1) * s, (y1 - y0 + 1) * s};
-  const int grow_x = r.width / 10 + 8, grow_y = r.height / 10 + 8;
-  return PixelRect{r.x - grow_x, r.y - grow_y, r.width + 2 * grow_x, r.height + 2 * grow_y}
-      .intersect(levels.front().rect());
-}
-
-}  // namespace
-
-PreparedRadiograph prepareRadiograph(const RadiographSpec& spec, const Machine& machine) {
-  PreparedRadiograph out;
-  out.spec = spec;
-  Image image = readTiff(spec.image);
-  if (image.width() != machine.columns || image.height() != machine.rows)
-    fail("{} is {}x{} pixels but the machine's detector is {}x{}", spec.image.string(),
-         image.width(), image.height(), machine.columns, machine.rows);
-  if (!spec.dark.empty()) {
-    const Image dark = readTiff(spec.dark), flat = readTiff(spec.flat);
-    try {
-      image = flatFieldCorrectRepairing(image, dark, flat, &out.repaired_pixels);
-    } catch (const Error& e) {
-      fail("{} with {} and {}: {}", spec.image.string(), spec.dark.string(), spec.flat.string(),
-           e.message());
-    }
-  }
-  if (!image.rect().contains(spec.white_region))
-    fail("{}: white region {} lies outside the {}x{} image", spec.image.string(),
-         toString(spec.white_region), image.width(), image.height());
-  const double white = meanOf(image, spec.white_region);
-  if (!(white > 0.0))
-    fail("{}: the white region's mean is {} (must be positive)", spec.image.string(), white);
-  const float scale = static_cast<float>(1.0 / white);
-  for (float& p : image.pixels()) p *= scale;
-
-  int count = 1;
-  while ((image.width() >> count) >= 64 && (image.height() >> count) >= 64) ++count;
-  out.levels = buildPyramid(image, count);
-  PixelRect roi;
-  if (spec.roi) {
-    if (!image.rect().contains(*spec.roi))
-      fail("{}: roi {} lies outside the {}x{} image", spec.image.string(), toString(*spec.roi),
-           image.width(), image.height());
-    roi = *spec.roi;
-  } else {
-    roi = automaticRoi(out.levels, spec);
-  }
-  for (int level = 0; level < count; ++level)
-    out.rois.push_back(rectAtLevelOutward(roi, level, out.levels[static_cast<size_t>(level)]));
-  return out;
-}
 
 namespace {
 
@@ -116,26 +30,37 @@ double ScatterEstimate::at(double u_level, double v_level) const {
          fy * ((1 - fx) * value(x0, y1) + fx * value(x1, y1));
 }
 
-ForwardModel::ForwardModel(const MeasurementJob& job)
-    : ForwardModel(job, ExponentialSum::load(job.material_file)) {}
+ForwardModel::ForwardModel(const MeasurementInputs& inputs)
+    : ForwardModel(inputs, [&]() -> const ExponentialSum& {
+        if (!inputs.material) fail("{}: the job names no material", inputs.job.file.string());
+        return *inputs.material;
+      }()) {}
 
-ForwardModel::ForwardModel(const MeasurementJob& job, const ExponentialSum& material)
-    : job_(job), part_(PartModel::load(job.part_file)), machine_(Machine::load(job.machine_file)) {
+ForwardModel::ForwardModel(const MeasurementInputs& inputs, const ExponentialSum& material)
+    : inputs_(inputs), part_(*inputs.part), material_(material) {
+  XG_CHECK(inputs.radiographs.size() == inputs.job.radiographs.size() &&
+               !inputs.radiographs.empty(),
+           "the inputs hold {} prepared radiographs for {} in the job", inputs.radiographs.size(),
+           inputs.job.radiographs.size());
+  const MeasurementJob& job = inputs.job;
+
   // The part: its reference centre and the dimension parameters.
   const std::vector<double> nominal = part_.nominalValues();
   const BoundingBox box = boundingBox(part_.mesh(nominal));
   centre_part_ = 0.5 * (box.min_mm + box.max_mm);
   part_size_mm_ = box.diagonal();
   const auto& dims = part_.dimensions();
+  std::vector<std::string> names;
+  std::vector<double> lower, upper, start;
   for (size_t i = 0; i < dims.size(); ++i) {
     const Dimension& d = dims[i];
     const bool free = std::find(job.free_dimensions.begin(), job.free_dimensions.end(), d.name) !=
                       job.free_dimensions.end();
-    double start = d.nominal;
+    double value = d.nominal;
     if (auto f = job.fixed_dimensions.find(d.name); f != job.fixed_dimensions.end())
-      start = f->second;
-    if (auto s = job.start.find(d.name); s != job.start.end()) start = s->second;
-    double lo = start, hi = start;
+      value = f->second;
+    if (auto s = job.start.find(d.name); s != job.start.end()) value = s->second;
+    double lo = value, hi = value;
     if (free) {
       free_dims_.push_back(static_cast<int>(i));
       if (auto b = job.bounds.find(d.name); b != job.bounds.end()) {
@@ -144,92 +69,82 @@ ForwardModel::ForwardModel(const MeasurementJob& job, const ExponentialSum& mate
         lo = std::max(d.min, d.nominal - 0.1 * std::abs(d.nominal));
         hi = std::min(d.max, d.nominal + 0.1 * std::abs(d.nominal));
       }
-      start = std::clamp(start, lo, hi);
+      value = std::clamp(value, lo, hi);
     }
-    lower_.push_back(lo), upper_.push_back(hi), start_.push_back(start);
-    kinds_.push_back(Kind::kDimension);
+    names.push_back(d.name), lower.push_back(lo), upper.push_back(hi), start.push_back(value);
   }
-  part_.validate(start_);
+  layout_.add("dim", ParameterKind::kDimension, names, lower, upper, start);
+  part_.validate(layout_.start());
 
   // The material: tabulated over the longest chord the part can have.
   double longest = 0.0;
-  for (size_t i = 0; i < dims.size(); ++i) longest = std::max(longest, dims[i].max);
+  for (const Dimension& d : dims) longest = std::max(longest, d.max);
   max_path_mm_ = 4.0 * box.diagonal() + 2.0 * longest;
   setMaterial(material);
 
-  // The radiographs and their pose parameters.
-  for (const RadiographSpec& spec : job.radiographs) {
-    radiographs_.push_back(prepareRadiograph(spec, machine_));
-    pose_offset_.push_back(size());
-    switch (spec.pattern) {
+  // Each radiograph's pose parameters.
+  const size_t levels = radiograph(0).levels.size();
+  for (int r = 0; r < radiographCount(); ++r) {
+    const RadiographSpec& s = spec(r);
+    if (radiograph(r).levels.size() != levels)
+      fail("radiographs {} and {} differ in size", spec(0).name, s.name);
+    switch (s.pattern) {
       case Acquisition::kFree:
-      case Acquisition::kRotated:
-        for (int k = 0; k < 3; ++k) {
-          lower_.push_back(job.rotation_bounds_deg[static_cast<size_t>(k)][0]);
-          upper_.push_back(job.rotation_bounds_deg[static_cast<size_t>(k)][1]);
-          start_.push_back(0.5 * (lower_.back() + upper_.back()));
-          kinds_.push_back(Kind::kRotation);
-        }
-        for (int k = 0; k < 3; ++k) {
-          lower_.push_back(job.centre_bounds_mm[static_cast<size_t>(k)][0]);
-          upper_.push_back(job.centre_bounds_mm[static_cast<size_t>(k)][1]);
-          start_.push_back(0.5 * (lower_.back() + upper_.back()));
-          kinds_.push_back(Kind::kPosition);
-        }
+      case Acquisition::kRotated: {
+        std::vector<double> lo, hi, mid;
+        for (const auto& range : job.rotation_bounds_deg)
+          lo.push_back(range[0]), hi.push_back(range[1]), mid.push_back(0.5 * (range[0] + range[1]));
+        layout_.add(s.name + "/rotation", ParameterKind::kRotation, {"rx", "ry", "rz"}, lo, hi, mid);
+        lo.clear(), hi.clear(), mid.clear();
+        for (const auto& range : job.centre_bounds_mm)
+          lo.push_back(range[0]), hi.push_back(range[1]), mid.push_back(0.5 * (range[0] + range[1]));
+        layout_.add(s.name + "/position", ParameterKind::kPosition, {"x", "y", "z"}, lo, hi, mid);
         break;
+      }
       case Acquisition::kTranslated:
-        lower_.insert(lower_.end(), {-180.0, -90.0});
-        upper_.insert(upper_.end(), {180.0, 90.0});
-        start_.insert(start_.end(), {0.0, 0.0});
-        kinds_.insert(kinds_.end(), {Kind::kAxis, Kind::kAxis});
+        layout_.add(s.name + "/axis", ParameterKind::kAxis, {"azimuth", "elevation"},
+                    {-180.0, -90.0}, {180.0, 90.0}, {0.0, 0.0});
         break;
       case Acquisition::kKnown:
         break;
     }
   }
-  for (size_t i = 1; i < radiographs_.size(); ++i)
-    if (radiographs_[i].levels.size() != radiographs_[0].levels.size())
-      fail("radiographs {} and {} differ in size", radiographs_[0].spec.name,
-           radiographs_[i].spec.name);
 }
 
 void ForwardModel::setMaterial(const ExponentialSum& material) {
-  material_ = std::make_shared<ExponentialSum>(material);
+  material_ = material;
   transmission_ = TransmissionTable::forMaterial(material, max_path_mm_);
 }
 
 void ForwardModel::freeMaterial(const ExponentialSum& material, std::vector<double>& theta) {
-  XG_CHECK(material_offset_ < 0, "the material is free already");
-  XG_CHECK(theta.size() == lower_.size(), "theta has the wrong size");
+  XG_CHECK(material_terms_ == 0, "the material is free already");
+  XG_CHECK(theta.size() == static_cast<size_t>(size()), "theta has the wrong size");
   const auto& terms = material.terms();
-  material_offset_ = size();
-  material_terms_ = static_cast<int>(terms.size());
+  const size_t m = terms.size();
+  std::vector<std::string> names;
+  std::vector<double> lower, upper, start;
   double rest = 1.0;
-  for (size_t k = 0; k + 1 < terms.size(); ++k) {
+  for (size_t k = 0; k + 1 < m; ++k) {
     const double u = rest > 0.0 ? std::clamp(terms[k].weight / rest, 0.0, 1.0) : 0.0;
     rest -= terms[k].weight;
-    lower_.push_back(0.0), upper_.push_back(1.0), start_.push_back(u), theta.push_back(u);
-    kinds_.push_back(Kind::kMaterial);
+    names.push_back(fmt::format("fraction{}", k + 1));
+    lower.push_back(0.0), upper.push_back(1.0), start.push_back(u);
   }
-  for (const ExponentialTerm& term : terms) {
-    const double mu = std::clamp(term.mu_per_mm, 0.0, 10.0);
-    lower_.push_back(0.0), upper_.push_back(10.0), start_.push_back(mu), theta.push_back(mu);
-    kinds_.push_back(Kind::kMaterial);
+  for (size_t k = 0; k < m; ++k) {
+    names.push_back(fmt::format("rate{}", k + 1));
+    lower.push_back(0.0), upper.push_back(10.0);
+    start.push_back(std::clamp(terms[k].mu_per_mm, 0.0, 10.0));
   }
+  layout_.add("material", ParameterKind::kMaterial, names, lower, upper, start);
+  theta.insert(theta.end(), start.begin(), start.end());
+  material_terms_ = static_cast<int>(m);
   setMaterial(materialOf(theta));
 }
 
-std::vector<int> ForwardModel::materialIndices() const {
-  std::vector<int> out;
-  for (int i = std::max(0, material_offset_); material_offset_ >= 0 && i < size(); ++i)
-    out.push_back(i);
-  return out;
-}
-
 ExponentialSum ForwardModel::materialOf(std::span<const double> theta) const {
-  if (material_offset_ < 0) return *material_;
+  if (material_terms_ == 0) return material_;
   const int m = material_terms_;
-  const double* u = theta.data() + material_offset_;
+  const double* u = theta.data() + layout_.block("material").front();
   const double* mu = u + (m - 1);
   std::vector<ExponentialTerm> terms;
   double rest = 1.0;
@@ -245,9 +160,9 @@ ExponentialSum ForwardModel::materialOf(std::span<const double> theta) const {
 }
 
 void ForwardModel::useMaterialOf(std::span<const double> theta) {
-  if (material_offset_ < 0) return;
+  if (material_terms_ == 0) return;
   const ExponentialSum wanted = materialOf(theta);
-  const auto& now = material_->terms();
+  const auto& now = material_.terms();
   bool same = now.size() == wanted.terms().size();
   for (size_t k = 0; same && k < now.size(); ++k)
     same = now[k].weight == wanted.terms()[k].weight &&
@@ -256,47 +171,67 @@ void ForwardModel::useMaterialOf(std::span<const double> theta) {
 }
 
 int ForwardModel::levelForWidth(int min_width) const {
+  if (min_width <= 0) return 0;
   int level = levels() - 1;
-  while (level > 0 && radiographs_.front().levels[static_cast<size_t>(level)].width() < min_width)
+  while (level > 0 && radiograph(0).levels[static_cast<size_t>(level)].width() < min_width)
     --level;
   return level;
 }
 
-std::vector<int> ForwardModel::poseIndices(int radiograph) const {
-  const int first = pose_offset_[static_cast<size_t>(radiograph)];
-  const int end = static_cast<size_t>(radiograph) + 1 < pose_offset_.size()
-                      ? pose_offset_[static_cast<size_t>(radiograph) + 1]
-                      : size();
-  std::vector<int> out;
-  for (int i = first; i < end; ++i) out.push_back(i);
-  return out;
+std::vector<int> ForwardModel::poseIndices(int r) const {
+  switch (spec(r).pattern) {
+    case Acquisition::kFree:
+    case Acquisition::kRotated: {
+      std::vector<int> out = layout_.block(spec(r).name + "/rotation");
+      for (int i : layout_.block(spec(r).name + "/position")) out.push_back(i);
+      return out;
+    }
+    case Acquisition::kTranslated:
+      return layout_.block(spec(r).name + "/axis");
+    case Acquisition::kKnown:
+      break;
+  }
+  return {};
+}
+
+std::vector<int> ForwardModel::jointIndices() const {
+  std::vector<int> all = free_dims_;
+  for (int r = 0; r < radiographCount(); ++r)
+    for (int i : poseIndices(r)) all.push_back(i);
+  for (int i : materialIndices()) all.push_back(i);
+  return all;
 }
 
 Pose ForwardModel::pose(std::span<const double> theta, int radiograph) const {
-  const RadiographSpec& spec = radiographs_[static_cast<size_t>(radiograph)].spec;
-  const double* p = theta.data() + pose_offset_[static_cast<size_t>(radiograph)];
-  switch (spec.pattern) {
+  const RadiographSpec& s = spec(radiograph);
+  auto at = [&](const std::string& name) {
+    return theta[static_cast<size_t>(layout_.index(s.name + name))];
+  };
+  switch (s.pattern) {
     case Acquisition::kFree:
     case Acquisition::kRotated: {
-      Pose out = Pose::fromEulerDeg(Vec3(p[0], p[1], p[2]), Vec3::Zero());
-      out.translation_mm = Vec3(p[3], p[4], p[5]) - out.rotation * centre_part_;
+      Pose out = Pose::fromEulerDeg(
+          Vec3(at("/rotation/rx"), at("/rotation/ry"), at("/rotation/rz")), Vec3::Zero());
+      out.translation_mm =
+          Vec3(at("/position/x"), at("/position/y"), at("/position/z")) - out.rotation * centre_part_;
       return out;
     }
     case Acquisition::kTranslated: {
-      Pose out = pose(theta, spec.reference);
-      out.translation_mm += spec.distance_mm * axisFromAngles(p[0], p[1]);
+      Pose out = pose(theta, s.reference);
+      out.translation_mm +=
+          s.distance_mm * axisFromAngles(at("/axis/azimuth"), at("/axis/elevation"));
       return out;
     }
     case Acquisition::kKnown:
-      return spec.known_pose;
+      return s.known_pose;
   }
   return {};
 }
 
 Machine ForwardModel::machineAt(int level) const {
-  Machine m = machine_;
+  Machine m = machine();
   const double s = static_cast<double>(1 << level);
-  const Image& image = radiographs_.front().levels[static_cast<size_t>(level)];
+  const Image& image = radiograph(0).levels[static_cast<size_t>(level)];
   m.columns = image.width();
   m.rows = image.height();
   m.pitch_u_mm *= s;
@@ -306,10 +241,28 @@ Machine ForwardModel::machineAt(int level) const {
   return m;
 }
 
-WorldMesh ForwardModel::posedMesh(std::span<const double> theta, int radiograph) {
-  part_.evaluate(theta.first(part_.dimensions().size()), part_vertices_);
+std::optional<std::string> ForwardModel::tryPose(std::span<const double> theta, int radiograph) {
+  if (auto why = part_.tryEvaluate(theta.first(part_.dimensions().size()), part_vertices_))
+    return why;
   poseVertices(pose(theta, radiograph), part_vertices_, world_vertices_);
-  return WorldMesh{world_vertices_, part_.triangles()};
+  if (auto why = outsideBeam(machine(), world_vertices_))
+    return fmt::format("{} in radiograph {}", *why, spec(radiograph).name);
+  return std::nullopt;
+}
+
+WorldMesh ForwardModel::worldMesh() const { return WorldMesh{world_vertices_, part_.triangles()}; }
+
+WorldMesh ForwardModel::posedMesh(std::span<const double> theta, int radiograph) {
+  if (auto why = tryPose(theta, radiograph)) fail("cannot simulate these parameters: {}", *why);
+  return worldMesh();
+}
+
+std::optional<std::string> ForwardModel::infeasibility(std::span<const double> theta) {
+  XG_CHECK(theta.size() == static_cast<size_t>(size()), "theta has the wrong size");
+  if (auto why = part_.invalidity(theta.first(part_.dimensions().size()))) return why;
+  for (int r = 0; r < radiographCount(); ++r)
+    if (auto why = tryPose(theta, r)) return why;
+  return std::nullopt;
 }
 
 Image ForwardModel::pathLengths(std::span<const double> theta, int radiograph, int level,
@@ -324,7 +277,7 @@ Image ForwardModel::pathLengths(std::span<const double> theta, int radiograph, i
 }
 
 ScatterEstimate ForwardModel::scatter(std::span<const double> theta, int radiograph, int level) {
-  XG_CHECK(job_.scatter.enabled(), "the job models no scatter");
+  XG_CHECK(job().scatter.enabled(), "the job models no scatter");
   useMaterialOf(theta);
   return scatterOf(posedMesh(theta, radiograph), radiograph, level);
 }
@@ -337,9 +290,9 @@ ScatterEstimate ForwardModel::scatterOf(const WorldMesh& mesh, int radiograph, i
   RenderOptions coarse_options;
   renderIntensity(mc, mesh, transmission_, coarse_options, coarse_);
   ScatterEstimate out;
-  out.blurred = gaussianBlur(coarse_, job_.scatter.sigma_mm / mc.pitch_u_mm);
+  out.blurred = gaussianBlur(coarse_, job().scatter.sigma_mm / mc.pitch_u_mm);
   // The model's open-beam level in the white region (full-size coordinates).
-  const PixelRect white = radiographs_[static_cast<size_t>(radiograph)].spec.white_region;
+  const PixelRect white = spec(radiograph).white_region;
   const double full_to_coarse = 1.0 / static_cast<double>(1 << coarse_level);
   out.ratio = full_to_coarse;
   double white_sum = 0.0;
@@ -348,7 +301,7 @@ ScatterEstimate ForwardModel::scatterOf(const WorldMesh& mesh, int radiograph, i
     for (int i = 0; i < kGrid; ++i)
       white_sum += out.at(white.x + (i + 0.5) * white.width / kGrid,
                           white.y + (j + 0.5) * white.height / kGrid);
-  const double w = job_.scatter.weight;
+  const double w = job().scatter.weight;
   out.open = (1.0 - w) + w * white_sum / (kGrid * kGrid);
   out.ratio = static_cast<double>(1 << level) / static_cast<double>(1 << coarse_level);
   return out;
@@ -357,23 +310,26 @@ ScatterEstimate ForwardModel::scatterOf(const WorldMesh& mesh, int radiograph, i
 Image ForwardModel::simulate(std::span<const double> theta, int radiograph, int level, int samples,
                              const PixelRect& region) {
   useMaterialOf(theta);
-  const WorldMesh mesh = posedMesh(theta, radiograph);
+  return simulatePosed(posedMesh(theta, radiograph), radiograph, level, samples, region);
+}
+
+Image ForwardModel::simulatePosed(const WorldMesh& mesh, int radiograph, int level, int samples,
+                                  const PixelRect& region) {
   RenderOptions options;
   options.samples_per_axis = samples;
   options.region = region;
   Image out;
   renderIntensity(machineAt(level), mesh, transmission_, options, out);
-  if (!job_.scatter.enabled()) return out;
+  const ScatterModel& scatter = job().scatter;
+  if (!scatter.enabled()) return out;
 
-  // Scintillator scatter, I' = (1 - w) I + w G(I), with the same
-  // white-region normalization as the measured image.
+  // The scintillator scatter, with the same white-region normalization as the
+  // measured image.
   const ScatterEstimate spread = scatterOf(mesh, radiograph, level);
-  const double w = job_.scatter.weight;
   for (int y = 0; y < out.height(); ++y)
     for (int x = 0; x < out.width(); ++x) {
       const double g = spread.at(region.x + x + 0.5, region.y + y + 0.5);
-      out(x, y) =
-          static_cast<float>(((1.0 - w) * static_cast<double>(out(x, y)) + w * g) / spread.open);
+      out(x, y) = static_cast<float>(scatter.mix(static_cast<double>(out(x, y)), g) / spread.open);
     }
   return out;
 }
@@ -381,20 +337,15 @@ Image ForwardModel::simulate(std::span<const double> theta, int radiograph, int 
 bool ForwardModel::forEachSimulated(
     std::span<const double> theta, int level, int samples, std::span<const int> radiographs,
     const std::function<void(const PreparedRadiograph&, const PixelRect&, const Image&)>& use) {
-  try {
-    part_.validate(theta.first(part_.dimensions().size()));
-    useMaterialOf(theta);
-    for (int r : radiographs) {
-      const PreparedRadiograph& rad = radiographs_[static_cast<size_t>(r)];
-      const PixelRect roi = rad.rois[static_cast<size_t>(level)];
-      rendered_ = simulate(theta, r, level, samples, roi);
-      use(rad, roi, rendered_);
-    }
-  } catch (const Error& e) {
-    // Dimensions the part cannot take, or a pose outside the beam: a bad
-    // point for the optimiser, not a failure of the measurement.
-    spdlog::debug("invalid parameters: {}", e.message());
-    return false;
+  XG_CHECK(theta.size() == static_cast<size_t>(size()), "theta has the wrong size");
+  if (part_.invalidity(theta.first(part_.dimensions().size()))) return false;
+  useMaterialOf(theta);
+  for (int r : radiographs) {
+    if (tryPose(theta, r)) return false;
+    const PreparedRadiograph& rad = radiograph(r);
+    const PixelRect roi = rad.rois[static_cast<size_t>(level)];
+    rendered_ = simulatePosed(worldMesh(), r, level, samples, roi);
+    use(rad, roi, rendered_);
   }
   return true;
 }
@@ -402,7 +353,7 @@ bool ForwardModel::forEachSimulated(
 bool ForwardModel::residuals(std::span<const double> theta, int level, int samples,
                              std::span<const int> radiographs, std::vector<double>& out) {
   out.clear();
-  return forEachSimulated(
+  const bool feasible = forEachSimulated(
       theta, level, samples, radiographs,
       [&](const PreparedRadiograph& rad, const PixelRect& roi, const Image& simulated) {
         const Image& measured = rad.levels[static_cast<size_t>(level)];
@@ -412,18 +363,20 @@ bool ForwardModel::residuals(std::span<const double> theta, int level, int sampl
             out.push_back(scale * (static_cast<double>(simulated(x, y)) -
                                    static_cast<double>(measured(roi.x + x, roi.y + y))));
       });
+  if (!feasible) out.clear();
+  return feasible;
 }
 
-double ForwardModel::loss(std::span<const double> theta, int level, int samples,
-                          std::span<const int> radiographs) {
-  const LossKind kind = lossKindFromName(job_.loss);
+std::optional<double> ForwardModel::loss(std::span<const double> theta, int level, int samples,
+                                         std::span<const int> radiographs) {
   double total = 0.0;
-  const bool valid = forEachSimulated(
+  const bool feasible = forEachSimulated(
       theta, level, samples, radiographs,
       [&](const PreparedRadiograph& rad, const PixelRect& roi, const Image& simulated) {
-        total += imageLoss(simulated, rad.levels[static_cast<size_t>(level)], roi, kind);
+        total += imageLoss(simulated, rad.levels[static_cast<size_t>(level)], roi, job().loss);
       });
-  return valid ? total : kInvalidLoss;
+  if (!feasible) return std::nullopt;
+  return total;
 }
 
 }  // namespace xgauge

@@ -6,6 +6,7 @@
 #include "xgauge/material/exponential_fit.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/measure/measure.h"
+#include "xgauge/measure/model.h"
 #include "xgauge/measure/truth.h"
 
 #include <spdlog/spdlog.h>
@@ -25,12 +26,27 @@ struct Combination {
   std::vector<std::string> shots;  // first is the free one
 };
 
-std::vector<Combination> combinations(const DatasetTruth& truth, const std::string& kind) {
-  std::vector<const TruthShot*> translated, rotated;
+// The translated series of the dataset's own description: a shot that
+// translated shots refer to, then those shots, in file order.
+std::vector<const TruthShot*> translatedSeries(const DatasetTruth& truth) {
+  std::vector<const TruthShot*> series;
   for (const auto& s : truth.shots) {
-    if (s.name.rfind("t", 0) == 0) translated.push_back(&s);
-    if (s.pattern == "rotated") rotated.push_back(&s);
+    if (s.pattern != "translated") continue;
+    if (series.empty()) series.push_back(&truth.shot(s.reference));
+    if (s.reference != series.front()->name)
+      fail("{}: shot {} is translated from {}, but the study's series starts at {}; a study takes "
+           "one translated series",
+           (truth.folder / "truth.json").string(), s.name, s.reference, series.front()->name);
+    series.push_back(&s);
   }
+  return series;
+}
+
+std::vector<Combination> combinations(const DatasetTruth& truth, const std::string& kind) {
+  const std::vector<const TruthShot*> translated = translatedSeries(truth);
+  std::vector<const TruthShot*> rotated;
+  for (const auto& s : truth.shots)
+    if (s.pattern == "rotated") rotated.push_back(&s);
   if (kind != "pairs" && kind != "pairs+rotated")
     fail("unknown combinations '{}' (known: pairs, pairs+rotated)", kind);
   std::vector<Combination> out;
@@ -52,14 +68,14 @@ std::vector<Combination> combinations(const DatasetTruth& truth, const std::stri
 }  // namespace
 
 nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& truth,
-                        const std::vector<std::string>& shots, const StudyInputs& inputs,
-                        const std::string& id) {
+                        const std::vector<std::string>& shots, const std::string& id,
+                        const fs::path& machine_file, const fs::path& material_file) {
   nlohmann::json job = settings;
   job.erase("material");
   job["description"] = "study run " + id;
   job["part"] = fs::absolute(truth.part_file).string();
-  job["machine"] = fs::absolute(inputs.machine).string();
-  job["material"] = fs::absolute(inputs.material).string();
+  job["machine"] = fs::absolute(machine_file).string();
+  job["material"] = fs::absolute(material_file).string();
   const auto& w = truth.white_region;
   nlohmann::json radiographs = nlohmann::json::array();
   const TruthShot& first = truth.shot(shots[0]);
@@ -87,26 +103,68 @@ nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& trut
 }
 
 StudyInputs prepareStudyInputs(const DatasetTruth& truth, const nlohmann::json& settings,
-                               const fs::path& settings_file, const fs::path& folder) {
-  fs::create_directories(folder);
-  StudyInputs inputs{folder / "machine.json", folder / "material.json"};
-  writeFileAtomically(inputs.machine, truth.machine.dump(2) + "\n");
+                               const fs::path& settings_file) {
+  StudyInputs inputs;
+  inputs.part = std::make_shared<const PartModel>(PartModel::load(truth.part_file));
+  const ConfigNode machine =
+      ConfigNode::fromJson(truth.machine, (truth.folder / "truth.json").string() + " (machine)");
+  inputs.machine = Machine::fromConfig(machine);
+  machine.finish();
   std::string material = "fit";
   if (const auto it = settings.find("material"); it != settings.end()) {
-    if (!it->is_string()) fail("{}: /material: expected \"fit\" or a file name", settings_file.string());
+    if (!it->is_string())
+      fail("{}: /material: expected \"fit\" or a file name", settings_file.string());
     material = it->get<std::string>();
   }
   if (material == "fit") {
     ExponentialFitReport report;
-    const ExponentialSum fitted = fitExponentialSum(truth.path_mm, truth.transmission, 3, {}, &report);
-    nlohmann::json m = fitted.toJson();
-    m["description"] = fmt::format("3 exponentials fitted to {} (max residual {:.2e})",
-                                   (truth.folder / "truth.json").string(), report.max_abs_residual);
-    writeFileAtomically(inputs.material, m.dump(2) + "\n");
+    const ExponentialSum fitted =
+        fitExponentialSum(truth.path_mm, truth.transmission, 3, {}, &report);
+    inputs.material =
+        ExponentialSum(fitted.terms(), fmt::format("3 exponentials fitted to {} (max residual {:.2e})",
+                                                   (truth.folder / "truth.json").string(),
+                                                   report.max_abs_residual));
   } else {
-    inputs.material = settings_file.parent_path() / material;
+    inputs.material = ExponentialSum::load(settings_file.parent_path() / material);
   }
   return inputs;
+}
+
+MeasurementInputs studyRunInputs(const nlohmann::json& job, const StudyInputs& inputs,
+                                 const fs::path& settings_file, PreparedShots& shots) {
+  MeasurementInputs in;
+  const ConfigNode root = ConfigNode::fromJson(job, settings_file.string());
+  in.job = MeasurementJob::fromConfig(root, settings_file, *inputs.part, true);
+  root.finish();
+  in.part = inputs.part;
+  in.machine = inputs.machine;
+  in.material = inputs.material;
+  for (const RadiographSpec& spec : in.job.radiographs) in.radiographs.push_back(shots.get(spec));
+  in.sha256 = shots.sha256();
+  return in;
+}
+
+std::shared_ptr<const PreparedRadiograph> PreparedShots::get(const RadiographSpec& spec) {
+  const std::lock_guard lock(mutex_);
+  auto it = prepared_.find(spec.image.string());
+  if (it == prepared_.end()) {
+    RadiographFrames frames;
+    if (!spec.dark.empty()) {
+      if (!dark_) dark_ = readInputTiff(spec.dark, sha256_), flat_ = readInputTiff(spec.flat, sha256_);
+      frames = {&*dark_, &*flat_};
+    }
+    it = prepared_
+             .emplace(spec.image.string(),
+                      std::make_shared<const PreparedRadiograph>(prepareRadiograph(
+                          readInputTiff(spec.image, sha256_), frames, spec, machine_)))
+             .first;
+  }
+  return it->second;
+}
+
+std::map<std::string, std::string> PreparedShots::sha256() const {
+  const std::lock_guard lock(mutex_);
+  return sha256_;
 }
 
 std::string StudySummary::table() const {
@@ -124,24 +182,34 @@ StudySummary runStudy(const StudyOptions& options) {
   nlohmann::json settings = settings_node.json();
   fs::create_directories(options.output / "runs");
 
-  // The machine from the dataset; the material from the settings or fitted.
-  const StudyInputs inputs = prepareStudyInputs(truth, settings, options.settings, options.output);
+  // The part and the machine from the dataset, the material from the
+  // settings or fitted, each radiograph prepared once for every run.
+  const StudyInputs inputs = prepareStudyInputs(truth, settings, options.settings);
+  PreparedShots shots(inputs.machine);
+  // Records, so that every run's job.json can be measured again by hand.
+  const fs::path machine_file = options.output / "machine.json";
+  const fs::path material_file = options.output / "material.json";
+  writeFileAtomically(machine_file, truth.machine.dump(2) + "\n");
+  writeFileAtomically(material_file, inputs.material.toJson().dump(2) + "\n");
 
   std::vector<Combination> runs = combinations(truth, options.combinations);
   if (options.limit > 0 && static_cast<size_t>(options.limit) < runs.size())
     runs.resize(static_cast<size_t>(options.limit));
 
-  // Write every job first (so a bad setting fails before any work).
-  std::vector<MeasurementJob> jobs;
+  // Every job first, checked against the part model (so a bad setting fails
+  // before any work); each is also written as a record of the run.
+  std::vector<nlohmann::json> jobs;
+  std::vector<std::string> free_dimensions;
   for (const auto& c : runs) {
-    const fs::path folder = options.output / "runs" / c.id;
-    fs::create_directories(folder);
-    writeFileAtomically(folder / "job.json", studyJob(settings, truth, c.shots, inputs, c.id).dump(2) + "\n");
-    jobs.push_back(MeasurementJob::load(folder / "job.json"));
+    jobs.push_back(studyJob(settings, truth, c.shots, c.id, machine_file, material_file));
+    const ConfigNode root = ConfigNode::fromJson(jobs.back(), options.settings.string());
+    const MeasurementJob job = MeasurementJob::fromConfig(root, options.settings, *inputs.part, true);
+    root.finish();
+    free_dimensions = job.free_dimensions;
   }
 
   StudySummary summary;
-  for (const auto& name : jobs.front().free_dimensions) summary.dimensions.push_back(name);
+  summary.dimensions = free_dimensions;
   summary.runs.resize(runs.size());
   ProgressBar progress("study", static_cast<int64_t>(runs.size()));
   const bool progress_was = progressEnabled();
@@ -152,9 +220,13 @@ StudySummary runStudy(const StudyOptions& options) {
     const fs::path folder = options.output / "runs" / runs[i].id;
     const fs::path result_file = folder / "result.json";
     if (!fs::exists(result_file)) {
-      const MeasurementResult result = measure(jobs[i]);
+      fs::create_directories(folder);
+      writeFileAtomically(folder / "job.json", jobs[i].dump(2) + "\n");
+      const MeasurementInputs run_inputs = studyRunInputs(jobs[i], inputs, options.settings, shots);
+      ForwardModel model(run_inputs);
+      const MeasurementResult result = measure(model, model.start());
       if (options.images) {
-        writeMeasurementOutputs(jobs[i], result, folder);
+        writeMeasurementOutputs(model, result, folder);
       } else {
         nlohmann::json dims = nlohmann::json::array();
         for (const auto& d : result.dimensions)

@@ -257,14 +257,27 @@ struct NloptContext {
   nlopt::opt* opt;
   std::exception_ptr error;  // thrown by f: NLopt's C++ wrapper would swallow it
   bool nan_point = false;    // NLopt asked for f at NaN (COBYLA after +inf values)
+  double largest_finite = 0.0;
 };
+
+// What an NLopt method is shown for an infeasible point (f = +inf): its
+// quadratic or simplex models need finite values, so a value worse than every
+// feasible one seen in this run, in the same units. The Evaluator keeps the
+// true +inf, so the stand-in can never be returned as the best value.
+double infeasibleStandIn(const NloptContext& context) {
+  return 10.0 * std::max(1.0, context.largest_finite);
+}
 
 double nloptObjective(unsigned n, const double* u, double* /*grad: derivative-free*/, void* data) {
   auto& context = *static_cast<NloptContext*>(data);
   context.nan_point = std::any_of(u, u + n, [](double c) { return std::isnan(c); });
   if (!context.nan_point) {
     try {
-      if (const auto value = context.ev->evaluate({u, n})) return *value;
+      if (const auto value = context.ev->evaluate({u, n})) {
+        if (*value == kInf) return infeasibleStandIn(context);
+        context.largest_finite = std::max(context.largest_finite, std::abs(*value));
+        return *value;
+      }
     } catch (...) {
       context.error = std::current_exception();
     }

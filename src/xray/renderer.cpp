@@ -195,6 +195,20 @@ void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const R
 RenderDiagnostics renderDiagnosticsIsolated(const Machine& machine, const WorldMesh& mesh,
                                             const RenderOptions& options);
 
+std::optional<std::string> outsideBeam(const Machine& machine,
+                                       std::span<const Vec3> world_vertices_mm) {
+  const double d = machine.source_detector_distance_mm;
+  for (size_t i = 0; i < world_vertices_mm.size(); ++i) {
+    const double z = world_vertices_mm[i].z();
+    if (!(z >= 0.0 && z < d) || !world_vertices_mm[i].allFinite())
+      return fmt::format(
+          "part vertex {} at z = {:.6g} mm is not between the detector plane (z = 0) and the "
+          "source (z = {} mm)",
+          i, z, d);
+  }
+  return std::nullopt;
+}
+
 void poseVertices(const Pose& pose, std::span<const Vec3> part_vertices,
                   std::vector<Vec3>& world_vertices) {
   world_vertices.resize(part_vertices.size());

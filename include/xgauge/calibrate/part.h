@@ -40,20 +40,25 @@
 
 #include "xgauge/calibrate/curve.h"
 #include "xgauge/material/exponential_sum.h"
+#include "xgauge/measure/inputs.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/measure/measure.h"
 
 #include <filesystem>
+#include <memory>
 #include <string>
 #include <vector>
 
 namespace xgauge {
 
 struct PartCalibrationJob {
-  MeasurementJob measurement;  // material_file empty
+  // The measurement job (material_file empty) and everything it names,
+  // loaded once.
+  std::shared_ptr<const MeasurementInputs> inputs;
+  const MeasurementJob& measurement() const { return inputs->job; }
   int terms = 3;
   int rounds = 4;
-  int initial_radiograph = 0;  // index into measurement.radiographs
+  int initial_radiograph = 0;  // index into measurement().radiographs
   PixelRect initial_region;
   double initial_path_mm = 0.0;
 

@@ -1,7 +1,7 @@
 // Material calibration from one radiograph of a wedge (thesis 3.4a), done
 // automatically:
 //   1. normalize (dark, flat, white region) and remove the detector's
-//      scintillator scatter (image/blur.h removeScatter), so that the curve is
+//      scintillator scatter (image/scatter.h), so that the curve is
 //      the scatter-free I(x) that the forward model pairs with its own scatter;
 //   2. find the ramp's columns and its thin and thick end rows (ramp.h);
 //   3. map every pixel of the band to its path length through the wedge by
@@ -41,6 +41,7 @@
 #include "xgauge/calibrate/ramp.h"
 #include "xgauge/material/exponential_sum.h"
 #include "xgauge/measure/job.h"
+#include "xgauge/xray/machine.h"
 
 #include <filesystem>
 #include <optional>
@@ -53,6 +54,7 @@ struct WedgeCalibrationJob {
   std::filesystem::path file;
   std::string description;
   std::filesystem::path machine_file;
+  Machine machine;  // loaded from machine_file
   RadiographSpec radiograph;
   double max_thickness_mm = 0.0;
   double ramp_length_mm = 0.0;

@@ -70,6 +70,9 @@ class ConfigNode {
   [[noreturn]] void fail(const std::string& message) const;
   SourceLocation where() const;
   const std::string& file() const;
+  // SHA-256 of the bytes loadFile() parsed (core/digest.h); empty for parse()
+  // and fromJson().
+  const std::string& sha256() const;
   const std::string& path() const { return path_; }
 
   // Throws on the first key under this node that nobody read (checks every

@@ -56,12 +56,14 @@
 // own expressions: give each thread its own copy.
 #pragma once
 
+#include "xgauge/core/config.h"
 #include "xgauge/core/transform.h"
 #include "xgauge/geometry/mesh.h"
 
 #include <filesystem>
 #include <map>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -86,6 +88,9 @@ class PartModel {
   // the nominal mesh is not closed and outward or the nominal values break a
   // constraint.
   static PartModel load(const std::filesystem::path& path);
+  // The same from a file already read (ConfigNode::loadFile); `path` is the
+  // file's, for its name and the folder of an STL shape.
+  static PartModel fromConfig(const ConfigNode& root, const std::filesystem::path& path);
   // A fixed mesh without dimensions (see readStl).
   static PartModel fromStl(const std::filesystem::path& path);
 
@@ -110,6 +115,9 @@ class PartModel {
   // constraint holds, naming the dimension or the constraint and its message.
   // `values` has one entry per dimension, in declaration order.
   void validate(std::span<const double> values) const;
+  // What validate() would throw, as a message; nullopt for valid values. For
+  // a fit, where such values are an infeasible point, not an error.
+  std::optional<std::string> invalidity(std::span<const double> values) const;
 
   // Vertex positions (mm, part frame) for these dimension values: always
   // vertexCount() vertices in the same order, matching triangles(). The hot
@@ -121,6 +129,10 @@ class PartModel {
   // at nominal values, no longer fits it) or a revolution profile point
   // reaching the axis.
   void evaluate(std::span<const double> values, std::vector<Vec3>& out) const;
+  // evaluate() that returns what it would throw instead (nullopt: `out` holds
+  // the vertices).
+  std::optional<std::string> tryEvaluate(std::span<const double> values,
+                                         std::vector<Vec3>& out) const;
 
   // validate + evaluate + triangles.
   TriangleMesh mesh(std::span<const double> values) const;
@@ -132,6 +144,8 @@ class PartModel {
  private:
   struct Definition;
   class Evaluator;
+  struct Invalidity;
+  std::optional<Invalidity> findInvalidity(std::span<const double> values) const;
   PartModel(std::shared_ptr<const Definition> definition, std::unique_ptr<Evaluator> evaluator);
 
   std::shared_ptr<const Definition> definition_;  // immutable, shared by copies

@@ -1,18 +1,10 @@
-// Gaussian blur with mirror boundaries, fast for any width, and the
-// scintillator scatter of a flat-panel detector built on it (thesis eq. 5.4).
-// Used by the virtual lab to simulate the scatter and by the measurement to
-// model it.
+// Gaussian blur with mirror boundaries, fast for any width, and the fused
+// blur-and-mix that the scintillator scatter (image/scatter.h) is built on.
 #pragma once
 
 #include "xgauge/image/image.h"
 
 namespace xgauge {
-
-// The thesis's fit of the scatter of its 4096 x 4096 panel of 0.1 mm pixels
-// (eq. 5.4): weight 0.139 of the light spread by a Gaussian of 500 px = 50 mm.
-// For another pixel pitch, sigma_px = kThesisScatterSigmaMm / pitch_mm.
-inline constexpr double kThesisScatterWeight = 0.139;
-inline constexpr double kThesisScatterSigmaMm = 50.0;
 
 // Gaussian blur with standard deviation `sigma_px` (pixels, >= 0; 0 returns a
 // copy) and half-sample-symmetric mirror boundaries (the image reflected about
@@ -49,27 +41,11 @@ inline constexpr double kThesisScatterSigmaMm = 50.0;
 // Throws Error if sigma_px is negative or not finite.
 Image gaussianBlur(Image image, double sigma_px);
 
-// Scintillator scatter, thesis eq. 5.4: weight * G(image, sigma_px) +
-// (1 - weight) * image. The blurred part lowers the bright side of every edge
-// and raises the dark side ("shadows"); the edge itself stays sharp. Preserves
-// the image sum and works in place like gaussianBlur. The defaults of the thesis are
-// kThesisScatterWeight and kThesisScatterSigmaMm / pitch.
+// weight * G(image, sigma_px) + (1 - weight) * image, fused so that a large
+// blur works in place; ScatterModel::apply is the scatter built on it (the
+// blurred part lowers the bright side of every edge and raises the dark side,
+// the edge itself stays sharp). Preserves the image sum.
 // Throws Error if weight is outside [0, 1] or sigma_px as gaussianBlur.
 Image scatterBlur(Image image, double weight, double sigma_px);
-
-// Undoes the scatter on a radiograph normalized by the mean of an open-beam
-// `white` region: finds the scatter-free I with
-//   n c = (1 - w) I + w G(I, sigma),   c = (1 - w) + w mean over white of G(I),
-// where n is the normalized image (the white region's mean, in which the
-// scatter shows too, was divided out as c). Fixed-point iteration
-//   I <- (n c - w G(I)) / (1 - w),
-// which contracts by about w / (1 - w) per step (0.16 for w = 0.139), from
-// I = n; `iterations` steps (12 leave about 1e-9 of the scatter). Used where
-// intensities are read directly from a radiograph (wedge calibration) rather
-// than compared with a simulation that adds the scatter.
-// Throws Error if weight is outside [0, 0.9], the white region lies outside
-// the image, or sigma_px as gaussianBlur.
-Image removeScatter(const Image& normalized, double weight, double sigma_px, const PixelRect& white,
-                    int iterations = 12);
 
 }  // namespace xgauge

@@ -14,6 +14,7 @@
 #include "xgauge/image/image.h"
 
 #include <filesystem>
+#include <string>
 
 namespace xgauge {
 
@@ -32,7 +33,9 @@ namespace xgauge {
 // interpretation (palette, MinIsWhite, ...), zero or more than 2^30 pixels, or
 // a float pixel that is NaN, infinite or beyond the float range (naming the
 // first such pixel "(x, y)" in row-major order).
-Image readTiff(const std::filesystem::path& path);
+// With `sha256`, also the SHA-256 of the file's bytes (core/digest.h), read
+// through the same open file.
+Image readTiff(const std::filesystem::path& path, std::string* sha256 = nullptr);
 
 enum class TiffFormat {
   kUInt16,   // values rounded to the nearest integer (halves away from zero) and

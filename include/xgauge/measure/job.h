@@ -1,4 +1,6 @@
-// A measurement job: what to measure, from which radiographs, how.
+// A measurement job: what to measure, from which radiographs, how. Plain
+// data (paths and settings); measure/inputs.h turns it into the loaded
+// inputs. Every key is documented in docs/formats.md.
 //
 // Job JSON keys (paths relative to the job file; unknown keys are errors):
 //   description        free text
@@ -12,16 +14,18 @@
 //   machine            machine file (xray/machine.h)
 //   material           exponential-sum material file (material/exponential_sum.h)
 //   scatter            optional {"weight": w, "sigma_mm": s}: the detector's scintillator
-//                      scatter I' = w G(I, s) + (1 - w) I, with s in mm on the detector,
-//                      modelled in the fit (METHOD.md: w = 0.139, s = 500 px of 0.1 mm)
+//                      scatter, modelled in the fit (image/scatter.h)
 //   radiographs        list of:
 //     name             unique name
 //     image            raw or normalized radiograph (TIFF)
 //     dark, flat       optional dark and flat frames (TIFF); bad pixels are repaired
-//     white_region     [x, y, w, h]: open beam; the image is divided by its mean (eq. 3.9)
+//     white_region     [x, y, w, h]: open beam; the image is divided by its mean
+//                      (thesis eq. 3.9, docs/method.md)
 //     roi              optional [x, y, w, h]: pixels compared; default: the part's shadow
-//                      in this image (normalized < 0.98) grown by 5 % of its size + 8 px
-//     pattern          "free" | "translated" | "rotated" | "known" (PARTS.md)
+//                      (below 0.9 of the open beam on a copy about 256 px wide) grown by
+//                      10 % of its size + 8 px on each side
+//     pattern          optional, "free" (default) | "translated" | "rotated" | "known"
+//                      (docs/conventions.md)
 //     reference        translated and rotated: the radiograph it refers to
 //     distance_mm      translated: the exact distance moved (mm)
 //     pose             known: the pose (xray/machine.h keys)
@@ -29,14 +33,18 @@
 //                      bounding-box centre; angles in degrees, R = Rz Ry Rx):
 //                      {"rotation_deg": [[rx0, rx1], [ry0, ry1], [rz0, rz1]],
 //                       "centre_mm": [[x0, x1], [y0, y1], [z0, z1]]}
-//   schedule           "default" or "thesis" (measure/schedule.h)
-//   loss               "l1" (thesis eq. 3.13, default) or "l2"
+//   schedule           optional, "default" or "thesis" (measure/schedule.h)
+//   loss               optional, "l1" (thesis eq. 3.13, default) or "l2"
 //   seed               optional, default 1
 #pragma once
 
 #include "xgauge/core/config.h"
 #include "xgauge/core/transform.h"
+#include "xgauge/geometry/part_model.h"
 #include "xgauge/image/image.h"
+#include "xgauge/image/scatter.h"
+#include "xgauge/loss/loss.h"
+#include "xgauge/measure/schedule.h"
 
 #include <array>
 #include <filesystem>
@@ -60,12 +68,6 @@ struct RadiographSpec {
   Pose known_pose;           // known
 };
 
-struct ScatterModel {
-  double weight = 0.0;
-  double sigma_mm = 0.0;  // on the detector
-  bool enabled() const { return weight > 0.0; }
-};
-
 struct MeasurementJob {
   std::filesystem::path file;
   std::string description;
@@ -78,21 +80,21 @@ struct MeasurementJob {
   std::vector<RadiographSpec> radiographs;
   std::array<std::array<double, 2>, 3> rotation_bounds_deg{};
   std::array<std::array<double, 2>, 3> centre_bounds_mm{};
-  std::string schedule = "default";
-  std::string loss = "l1";
+  ScheduleKind schedule = ScheduleKind::kDefault;
+  LossKind loss = LossKind::kMeanAbsolute;
   uint64_t seed = 1;
 
-  // Reads and validates a job file (Error naming file and key).
-  static MeasurementJob load(const std::filesystem::path& path);
-  // The same from a parsed file whose other keys the caller reads (a
-  // calibration job adds its own); does not call finish(). Without
+  // Reads a parsed job file whose part model `part` the caller has loaded
+  // from the "part" key (job.part_file names it; partFileOf gives it);
+  // validates every key against the model (Error naming the file and key).
+  // Does not call finish(): a calibration job adds keys of its own. Without
   // `needs_material` the material key is optional (material_file empty).
   static MeasurementJob fromConfig(const ConfigNode& root, const std::filesystem::path& path,
-                                   bool needs_material);
+                                   const PartModel& part, bool needs_material);
+  // The part model file a parsed job names (relative to the job file).
+  static std::filesystem::path partFileOf(const ConfigNode& root,
+                                          const std::filesystem::path& path);
 };
-
-// {"weight": w in [0, 0.9], "sigma_mm": s in [0.01, 1e4]} (Error at the node otherwise).
-ScatterModel scatterModelFromConfig(const ConfigNode& node);
 
 // [x, y, width, height] in whole pixels, not empty (Error at the node otherwise).
 PixelRect pixelRectFromConfig(const ConfigNode& node);

@@ -1,22 +1,10 @@
-// The measurement pipeline: a job in, dimensions and poses out.
-//
-// Schedules (thesis 3.8 and ours), as stages over the forward model:
-//   thesis   per radiograph: global search of x, y and the rotation about the
-//            vertical axis (or the 2-DOF axis of a translated radiograph) by
-//            uniform sampling, 5000 points, on a coarse pyramid level; then a
-//            local 6-DOF (2-DOF) Nelder-Mead, 5000 evaluations; then every free
-//            parameter of every radiograph together at full resolution,
-//            Nelder-Mead, 5000 evaluations.
-//   default  the same structure, faster: the initial position comes from the
-//            shadow's centroid, the global search samples 150 points around it
-//            and refines the best 4 (multi-start) with BOBYQA, local
-//            stages use BOBYQA with restarts and small budgets on coarse levels,
-//            and the joint fit runs coarse to fine on levels 512, 1024 and 2048 px
-//            wide (or full size when smaller) with 2 x 2 area sampling, so
-//            sub-pixel changes are seen.
+// The measurement pipeline: loaded inputs in, dimensions and poses out, by
+// the job's schedule (measure/schedule.h) over the forward model
+// (measure/model.h).
 #pragma once
 
 #include "xgauge/core/transform.h"
+#include "xgauge/measure/inputs.h"
 #include "xgauge/measure/job.h"
 
 #include <string>
@@ -60,8 +48,9 @@ struct MeasurementResult {
   int evaluations = 0;
 };
 
-// Runs the job's schedule. Shows a progress bar per stage.
-MeasurementResult measure(const MeasurementJob& job);
+// Runs the job's schedule on the loaded inputs. Shows a progress bar per
+// stage.
+MeasurementResult measure(const MeasurementInputs& inputs);
 
 class ForwardModel;
 struct MeasureOptions {
@@ -77,9 +66,11 @@ struct MeasureOptions {
 MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
                           const MeasureOptions& options = {});
 
-// Writes result.json, the final simulated radiographs and the difference
-// images (float TIFF and diverging-colour PNG) into `folder`, atomically.
-void writeMeasurementOutputs(const MeasurementJob& job, const MeasurementResult& result,
+// Writes result.json (with the SHA-256 of every input as it was read), the
+// final simulated radiographs and the difference images (float TIFF and
+// diverging-colour PNG) into `folder`, atomically, from the model that
+// measured.
+void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,
                              const std::filesystem::path& folder);
 
 }  // namespace xgauge

@@ -13,12 +13,16 @@
 // not run again, so an interrupted study resumes where it stopped.
 #pragma once
 
+#include "xgauge/measure/inputs.h"
 #include "xgauge/measure/truth.h"
 
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
 #include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -53,19 +57,43 @@ struct StudySummary {
 // into options.output.
 StudySummary runStudy(const StudyOptions& options);
 
-// The pieces a study builds its jobs from, for other drivers (benchmarks):
-// the dataset's machine and the material (fitted unless the settings name
-// one), written into `folder`.
+// The pieces every run of a study shares, loaded once: the dataset's part
+// model and machine, and the material (fitted to the dataset's transmission
+// table unless the settings name a file).
 struct StudyInputs {
-  std::filesystem::path machine, material;
+  std::shared_ptr<const PartModel> part;
+  Machine machine;
+  ExponentialSum material{{{1.0, 0.0}}, ""};
 };
 StudyInputs prepareStudyInputs(const DatasetTruth& truth, const nlohmann::json& settings,
-                               const std::filesystem::path& settings_file,
-                               const std::filesystem::path& folder);
-// A job measuring `shots` of the dataset: the first free, the others
-// translated (or rotated) from it.
+                               const std::filesystem::path& settings_file);
+
+// The dataset's radiographs, each read and prepared once however many runs
+// use it (thread-safe; every shot shares the dataset's dark and flat frames).
+class PreparedShots {
+ public:
+  explicit PreparedShots(const Machine& machine) : machine_(machine) {}
+  std::shared_ptr<const PreparedRadiograph> get(const RadiographSpec& spec);
+  std::map<std::string, std::string> sha256() const;
+
+ private:
+  const Machine& machine_;
+  mutable std::mutex mutex_;
+  std::optional<Image> dark_, flat_;
+  std::map<std::string, std::shared_ptr<const PreparedRadiograph>> prepared_;
+  std::map<std::string, std::string> sha256_;
+};
+
+// A job (as JSON, also written as each run's record) measuring `shots` of
+// the dataset: the first free, the others translated (or rotated) from it;
+// it names the machine and material files the study wrote as records.
 nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& truth,
-                        const std::vector<std::string>& shots, const StudyInputs& inputs,
-                        const std::string& id);
+                        const std::vector<std::string>& shots, const std::string& id,
+                        const std::filesystem::path& machine_file,
+                        const std::filesystem::path& material_file);
+// The inputs of one run: the job parsed and checked against the part model,
+// the shared part, machine and material, and its prepared shots.
+MeasurementInputs studyRunInputs(const nlohmann::json& job, const StudyInputs& inputs,
+                                 const std::filesystem::path& settings_file, PreparedShots& shots);
 
 }  // namespace xgauge

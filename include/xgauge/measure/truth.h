@@ -19,6 +19,7 @@ struct TruthShot {
   std::filesystem::path file;
   std::string pattern;       // "free", "translated", "rotated"
   double distance_mm = 0.0;  // translated: from the reference
+  std::string reference;     // translated: the shot it was moved from
   Pose pose;
 };
 

@@ -24,7 +24,9 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
+#include <string>
 #include <vector>
 
 namespace xgauge {
@@ -45,6 +47,13 @@ struct WorldMesh {
 // world[i] = pose.apply(part[i]); `world` is resized, its capacity reused.
 void poseVertices(const Pose& pose, std::span<const Vec3> part_vertices,
                   std::vector<Vec3>& world_vertices);
+
+// Why `machine` cannot render a mesh with these world vertices: the first
+// vertex that is not between the detector plane (z >= 0) and the source
+// (z < D), or nullopt when every vertex is. The render functions throw Error
+// for such a mesh; a fit asks first and treats the pose as infeasible.
+std::optional<std::string> outsideBeam(const Machine& machine,
+                                       std::span<const Vec3> world_vertices_mm);
 
 // Mean path length (mm) through the part over each pixel's samples.
 void renderPathLength(const Machine& machine, const WorldMesh& mesh,

@@ -1,0 +1,68 @@
+// The loaded inputs of a measurement: one loader reads the job and every file
+// it names exactly once (part model, machine, material, each radiograph and
+// each dark and flat frame) and prepares the radiographs; the fit and the
+// output writers share what it returns. Every file's SHA-256 is taken from
+// the bytes that were parsed, so a result names exactly what it used.
+#pragma once
+
+#include "xgauge/geometry/part_model.h"
+#include "xgauge/image/image.h"
+#include "xgauge/image/radiograph.h"
+#include "xgauge/material/exponential_sum.h"
+#include "xgauge/measure/job.h"
+#include "xgauge/xray/machine.h"
+
+#include <filesystem>
+#include <map>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace xgauge {
+
+// A radiograph prepared for fitting: normalized without the clamp (dark/flat
+// and the white region, image/radiograph.h), its pyramid and its roi.
+struct PreparedRadiograph {
+  std::vector<Image> levels;    // 0 = full size, halving down to about 64 px
+  std::vector<PixelRect> rois;  // the region compared, per level
+  int64_t repaired_pixels = 0;  // bad pixels repaired by the flat-field correction
+};
+
+// Normalizes `raw` (named `spec.image` in errors) and builds its pyramid and
+// roi (spec.roi, or the part's shadow: job.h). Throws Error naming the image
+// when its size is not the machine's detector or a region lies outside it.
+PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
+                                     const RadiographSpec& spec, const Machine& machine);
+
+struct MeasurementInputs {
+  MeasurementJob job;
+  std::shared_ptr<const PartModel> part;
+  Machine machine;
+  std::optional<ExponentialSum> material;  // absent when the job names none (a calibration)
+  // One per job.radiographs entry, in its order.
+  std::vector<std::shared_ptr<const PreparedRadiograph>> radiographs;
+  // Every file read, as given in the job (or its folder), with its SHA-256.
+  std::map<std::string, std::string> sha256;
+};
+
+// Reads the job file and everything it names. Throws Error naming the file
+// and key of the first problem.
+MeasurementInputs loadMeasurementInputs(const std::filesystem::path& job_file);
+
+// The same from a job file the caller has parsed (a calibration job with keys
+// of its own, which the caller reads before calling root.finish()). Without
+// `needs_material` the "material" key is optional.
+MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
+                                        const std::filesystem::path& job_file,
+                                        bool needs_material);
+
+// Reads a TIFF once, recording its SHA-256 in `sha256` (keyed by path).
+Image readInputTiff(const std::filesystem::path& path, std::map<std::string, std::string>& sha256);
+
+// Reads and prepares every radiograph of `job` from their files, each file
+// (dark and flat frames shared between radiographs too) read once.
+std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
+    const MeasurementJob& job, const Machine& machine, std::map<std::string, std::string>& sha256);
+
+}  // namespace xgauge

@@ -1,0 +1,108 @@
+// Schedules: how a measurement fits, as data (thesis 3.8, docs/method.md).
+//
+// Every schedule has the same three steps:
+//   1. each radiograph's pose alone, the part at its starting dimensions:
+//      free and rotated radiographs by a global search of (ry, x, y) and a
+//      local 6-DOF fit; translated ones by their 2-DOF axis;
+//   2. every free parameter of every radiograph together, coarse to fine;
+//   3. optionally, (reweighted) least squares on the residuals.
+// The tables below differ only in their fields; `measure()` reads them.
+//
+//   thesis   per radiograph: uniform sampling of 5000 points over the whole
+//            bounds on the level about 256 px wide, then Nelder-Mead, 5000
+//            evaluations (translated: the axis sampled over the sphere, then
+//            Nelder-Mead); then everything together at full size by
+//            Nelder-Mead, 5000 evaluations.
+//   default  the same structure, faster: the position starts at the shadow's
+//            centroid and the sampling (150 points) searches a window of a
+//            quarter of the part's size around it; the best 4 distinct samples
+//            are refined by BOBYQA (multi-start) and the best is refined on
+//            a level about 512 px wide; a translated radiograph's axis comes
+//            from the shift of its shadow's centroid. The joint fit runs by
+//            BOBYQA on levels about 512, 1024 and 2048 px wide with 2 x 2
+//            area samples, each in a window of ten first steps around the
+//            estimate so far; then least squares on the residuals (reweighted
+//            for the L1 loss) on the finest of those levels.
+#pragma once
+
+#include "xgauge/optimize/minimize.h"
+
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace xgauge {
+
+// A local or global stage over one radiograph's pose.
+struct PoseStage {
+  Method method = Method::kBobyqa;
+  int min_width_px = 256;   // the coarsest pyramid level at least this wide
+  int evaluations = 0;      // local methods
+  int sampling_points = 0;  // uniform sampling
+  // First steps, in the units of the parameters they move: (rx, ry, rz in
+  // deg, x, y, z in mm) for a pose, (azimuth, elevation in deg) for an axis.
+  std::vector<double> steps;
+};
+
+struct PoseSchedule {
+  // Free and rotated radiographs.
+  PoseStage search;  // global search of (ry, x, y)
+  // Start the search at the shadow's centroid seen at the middle depth, and
+  // search only a window of `window_of_part_size` x the part's size around it
+  // (the rotation over its whole bounds); false: the whole bounds.
+  bool search_around_shadow = false;
+  double window_of_part_size = 0.25;
+  // Refine the best `multistart` distinct samples (at least `separation` of
+  // the bounds apart) with `local` and keep the best; 0: refine the best
+  // point once.
+  int multistart = 0;
+  double separation = 0.05;
+  PoseStage local;                   // 6-DOF
+  std::vector<PoseStage> finer = {};  // 6-DOF refinements, in order
+
+  // Translated radiographs.
+  bool axis_from_shadow_shift = false;  // else: axis_search samples the sphere
+  PoseStage axis_search;
+  PoseStage axis_local;
+  std::vector<PoseStage> axis_finer = {};
+};
+
+// One stage of the joint fit.
+struct JointStage {
+  Method method = Method::kBobyqa;
+  int min_width_px = 0;  // 0: full size
+  int samples = 1;       // area samples per pixel axis
+  int evaluations = 0;
+  // First steps: this times each kind's first step (measure.cpp firstStep).
+  double step_scale = 1.0;
+  // The stage searches within `window_steps` first steps of the estimate so
+  // far (bounds of similar sensitivity keep a trust region well shaped); 0:
+  // within the whole bounds.
+  double window_steps = 0.0;
+};
+
+struct LeastSquaresStage {
+  bool enabled = false;
+  int min_width_px = 2048;
+  int samples = 2;
+  int max_iterations = 30;
+};
+
+enum class ScheduleKind { kDefault, kThesis };
+
+struct Schedule {
+  ScheduleKind kind = ScheduleKind::kDefault;
+  PoseSchedule pose;
+  std::vector<JointStage> joint;
+  LeastSquaresStage least_squares;
+};
+
+// The tables described at the top of this file.
+const Schedule& scheduleFor(ScheduleKind kind);
+// "default", "thesis".
+std::string_view scheduleName(ScheduleKind kind);
+// Inverse of scheduleName; nullopt for an unknown name.
+std::optional<ScheduleKind> scheduleKindFromName(std::string_view name);
+
+}  // namespace xgauge

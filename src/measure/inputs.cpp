@@ -1,0 +1,136 @@
+#include "xgauge/measure/inputs.h"
+
+#include "xgauge/core/config.h"
+#include "xgauge/image/pyramid.h"
+#include "xgauge/image/tiff.h"
+
+namespace xgauge {
+
+namespace {
+
+// `rect` (full-size pixels) at pyramid `level`, rounded outwards and clipped.
+PixelRect rectAtLevelOutward(const PixelRect& rect, int level, const Image& image) {
+  const int s = 1 << level;
+  const int x0 = rect.x / s, y0 = rect.y / s;
+  const int x1 = (rect.right() + s - 1) / s, y1 = (rect.bottom() + s - 1) / s;
+  return PixelRect{x0, y0, x1 - x0, y1 - y0}.intersect(image.rect());
+}
+
+// The part's shadow: where a coarse copy of the normalized image is below
+// 0.9, as a bounding box grown by 10 % of its size plus 8 pixels.
+PixelRect automaticRoi(const std::vector<Image>& levels, const RadiographSpec& spec) {
+  int level = 0;
+  while (level + 1 < static_cast<int>(levels.size()) &&
+         levels[static_cast<size_t>(level)].width() > 256)
+    ++level;
+  const Image& coarse = levels[static_cast<size_t>(level)];
+  int x0 = coarse.width(), y0 = coarse.height(), x1 = -1, y1 = -1;
+  for (int y = 0; y < coarse.height(); ++y)
+    for (int x = 0; x < coarse.width(); ++x)
+      if (coarse(x, y) < 0.9f)
+        x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+  if (x1 < 0)
+    fail("{}: no part shadow found (no pixel below 0.9 of the open beam); give its roi",
+         spec.image.string());
+  const int s = 1 << level;
+  PixelRect r{x0 * s, y0 * s, (x1 - x0 + 1) * s, (y1 - y0 + 1) * s};
+  const int grow_x = r.width / 10 + 8, grow_y = r.height / 10 + 8;
+  return PixelRect{r.x - grow_x, r.y - grow_y, r.width + 2 * grow_x, r.height + 2 * grow_y}
+      .intersect(levels.front().rect());
+}
+
+// Parses a JSON input file once, recording its digest.
+ConfigNode loadInputConfig(const std::filesystem::path& path,
+                           std::map<std::string, std::string>& sha256) {
+  ConfigNode node = ConfigNode::loadFile(path);
+  sha256[path.string()] = node.sha256();
+  return node;
+}
+
+}  // namespace
+
+PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
+                                     const RadiographSpec& spec, const Machine& machine) {
+  if (raw.width() != machine.columns || raw.height() != machine.rows)
+    fail("{} is {}x{} pixels but the machine's detector is {}x{}", spec.image.string(),
+         raw.width(), raw.height(), machine.columns, machine.rows);
+  const std::string name = spec.image.string();
+  NormalizedRadiograph normalized =
+      normalizeRadiograph(std::move(raw), frames, spec.white_region, ClampPolicy::kNone, name);
+  const Image& image = normalized.image;
+  PreparedRadiograph out;
+  out.repaired_pixels = normalized.repaired_pixels;
+  int count = 1;
+  while ((image.width() >> count) >= 64 && (image.height() >> count) >= 64) ++count;
+  out.levels = buildPyramid(image, count);
+  PixelRect roi;
+  if (spec.roi) {
+    if (!image.rect().contains(*spec.roi))
+      fail("{}: roi {} lies outside the {}x{} image", name, toString(*spec.roi), image.width(),
+           image.height());
+    roi = *spec.roi;
+  } else {
+    roi = automaticRoi(out.levels, spec);
+  }
+  for (int level = 0; level < count; ++level)
+    out.rois.push_back(rectAtLevelOutward(roi, level, out.levels[static_cast<size_t>(level)]));
+  return out;
+}
+
+Image readInputTiff(const std::filesystem::path& path, std::map<std::string, std::string>& sha256) {
+  std::string digest;
+  Image image = readTiff(path, &digest);
+  sha256[path.string()] = digest;
+  return image;
+}
+
+std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
+    const MeasurementJob& job, const Machine& machine, std::map<std::string, std::string>& sha256) {
+  // Dark and flat frames are usually shared by every radiograph: read each once.
+  std::map<std::filesystem::path, Image> frames;
+  auto frame = [&](const std::filesystem::path& path) -> const Image& {
+    auto it = frames.find(path);
+    if (it == frames.end()) it = frames.emplace(path, readInputTiff(path, sha256)).first;
+    return it->second;
+  };
+  std::vector<std::shared_ptr<const PreparedRadiograph>> out;
+  for (const RadiographSpec& spec : job.radiographs) {
+    RadiographFrames given;
+    if (!spec.dark.empty()) given = {&frame(spec.dark), &frame(spec.flat)};
+    out.push_back(std::make_shared<const PreparedRadiograph>(
+        prepareRadiograph(readInputTiff(spec.image, sha256), given, spec, machine)));
+  }
+  return out;
+}
+
+MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
+                                        const std::filesystem::path& job_file,
+                                        bool needs_material) {
+  MeasurementInputs in;
+  in.sha256[job_file.string()] = root.sha256();
+  const std::filesystem::path part_file = MeasurementJob::partFileOf(root, job_file);
+  in.part = std::make_shared<const PartModel>(
+      PartModel::fromConfig(loadInputConfig(part_file, in.sha256), part_file));
+  in.job = MeasurementJob::fromConfig(root, job_file, *in.part, needs_material);
+  {
+    const ConfigNode machine = loadInputConfig(in.job.machine_file, in.sha256);
+    in.machine = Machine::fromConfig(machine);
+    machine.finish();
+  }
+  if (!in.job.material_file.empty()) {
+    const ConfigNode material = loadInputConfig(in.job.material_file, in.sha256);
+    in.material = ExponentialSum::fromConfig(material);
+    material.finish();
+  }
+  in.radiographs = loadRadiographs(in.job, in.machine, in.sha256);
+  return in;
+}
+
+MeasurementInputs loadMeasurementInputs(const std::filesystem::path& job_file) {
+  const ConfigNode root = ConfigNode::loadFile(job_file);
+  MeasurementInputs in = loadMeasurementInputs(root, job_file, true);
+  root.finish();
+  return in;
+}
+
+}  // namespace xgauge

@@ -1,0 +1,73 @@
+// The stages a measurement schedule is made of (private to measure/): one
+// optimisation over a named subset of the parameters (Runner), the final
+// (reweighted) least squares, and the image measures the default schedule
+// starts its pose searches from.
+#pragma once
+
+#include "xgauge/measure/measure.h"
+#include "xgauge/measure/model.h"
+#include "xgauge/optimize/minimize.h"
+
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace xgauge {
+
+// One optimisation over a subset of the parameters.
+struct StagePlan {
+  std::string name;
+  Method method = Method::kBobyqa;
+  std::vector<int> indices;      // parameters varied
+  std::vector<int> radiographs;  // radiographs in the loss
+  int level = 0;
+  int samples = 1;
+  int evaluations = 100;
+  int sampling_points = 0;                     // uniform sampling
+  std::vector<double> lower = {}, upper = {};  // optional narrower bounds for `indices`
+  std::vector<double> step = {};               // optional initial steps for `indices`
+};
+
+// Runs stages on one parameter vector, keeping a stage's result only when it
+// does not increase the loss, and records each stage's report.
+class Runner {
+ public:
+  Runner(ForwardModel& model, std::vector<double>& theta, MeasurementResult& result, uint64_t seed)
+      : model_(model), theta_(theta), result_(result), seed_(seed) {}
+
+  void report(const StageReport& stage);
+  // Every point evaluated by the next run() goes into `record` (loss, theta).
+  void recordInto(std::vector<std::pair<double, std::vector<double>>>* record) { record_ = record; }
+  // Runs the stage; returns the loss after it (+inf when no feasible point).
+  double run(const StagePlan& plan);
+
+ private:
+  ForwardModel& model_;
+  std::vector<double>& theta_;
+  MeasurementResult& result_;
+  uint64_t seed_;
+  std::vector<std::pair<double, std::vector<double>>>* record_ = nullptr;
+};
+
+// The `count` best recorded points that differ from each other by more than
+// `separation` (relative to the bounds) in some varied coordinate.
+std::vector<std::vector<double>> distinctBest(
+    std::vector<std::pair<double, std::vector<double>>> record, const std::vector<int>& indices,
+    const ForwardModel& model, size_t count, double separation);
+
+// Absorption-weighted centroid of a radiograph's roi at `level`, in full-size
+// continuous pixel coordinates.
+Vec2 shadowCentroid(const PreparedRadiograph& r, int level);
+
+// Levenberg-Marquardt on the per-pixel residuals, for the final refinement:
+// where a derivative-free method crawls along a narrow valley (depth against
+// size against a translation's depth component), the Gauss-Newton step goes
+// straight down it. Forward-difference Jacobian with small physical steps;
+// bounds are kept by clamping. With `robust`, the L1 loss is minimised by
+// iteratively reweighted least squares: weights 1 / max(|r|, a tenth of the
+// median |r|), recomputed at every iteration.
+StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
+                               const std::vector<int>& indices, const std::vector<int>& radiographs,
+                               int level, int samples, int max_iterations, bool robust);
+
+}  // namespace xgauge

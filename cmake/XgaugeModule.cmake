@@ -4,7 +4,9 @@
 #   A static library xgauge_<NAME> with alias xgauge::<NAME>. Public headers
 #   live in include/xgauge/<NAME>/; DEPS lists the lower modules and external
 #   targets it links against (PUBLIC), so including a higher module fails to
-#   link.
+#   link. When XGAUGE_INSTALL is on, the library joins the export set
+#   xgaugeTargets (installed as xgauge::<NAME> by the top CMakeLists.txt), so
+#   a new module is installed and exported without further changes.
 # xgauge_test(NAME SOURCES ... DEPS ...)
 #   A GoogleTest executable registered with CTest.
 
@@ -31,11 +33,22 @@ function(xgauge_module name)
   cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
   add_library(xgauge_${name} STATIC ${ARG_SOURCES})
   add_library(xgauge::${name} ALIAS xgauge_${name})
+  # The build tree's include/ holds generated headers (xgauge/version.h).
   target_include_directories(xgauge_${name}
-    PUBLIC ${PROJECT_SOURCE_DIR}/include
+    PUBLIC $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/include>
+           $<BUILD_INTERFACE:${PROJECT_BINARY_DIR}/include>
+           $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>
     PRIVATE ${PROJECT_SOURCE_DIR}/src)
   target_link_libraries(xgauge_${name} PUBLIC ${ARG_DEPS})
   xgauge_compile_options(xgauge_${name})
+  set_target_properties(xgauge_${name} PROPERTIES EXPORT_NAME ${name})
+  set_property(GLOBAL APPEND PROPERTY XGAUGE_MODULES ${name})
+  if(XGAUGE_INSTALL)
+    install(TARGETS xgauge_${name} EXPORT xgaugeTargets
+      ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR}
+      LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
+      RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
+  endif()
 endfunction()
 
 function(xgauge_test name)

@@ -254,7 +254,7 @@ void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& 
   writeCalibrationOutputs(folder, result.material, figures, plot, true_curve);
 
   // The last pose fit, with the calibrated material: the residual images show
-  // what the model does not explain (thesis Figure 5.5).
+  // what the model does not explain (thesis Figure 5.5, docs/method.md).
   ForwardModel model(*job.inputs, result.material);
   MeasurementResult fitted = result.measurement;
   fitted.theta.resize(static_cast<size_t>(model.size()));  // without the free material's parameters

@@ -22,9 +22,4 @@ ThreadLimit::ThreadLimit(int threads) : impl_(std::make_unique<Impl>()) {
 
 ThreadLimit::~ThreadLimit() = default;
 
-int maxThreads() {
-  return static_cast<int>(
-      tbb::global_control::active_value(tbb::global_control::max_allowed_parallelism));
-}
-
 }  // namespace xgauge

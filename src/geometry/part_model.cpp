@@ -331,24 +331,33 @@ std::optional<std::string> PartModel::invalidity(std::span<const double> values)
   return std::nullopt;
 }
 
-std::optional<std::string> PartModel::tryEvaluate(std::span<const double> values,
-                                                  std::vector<Vec3>& out) const {
+std::optional<PartModel::Invalidity> PartModel::findFold(std::span<const double> values,
+                                                        std::vector<Vec3>& out) const {
   const Definition& d = *definition_;
   XG_CHECK(values.size() == d.dimensions.size(), "{} values for {} dimensions", values.size(),
            d.dimensions.size());
   if (const ExpressionSource* bad = evaluator_->compute(d, values)) [[unlikely]]
-    return fmt::format("expression '{}' is not finite at {}", bad->text, d.describe(values));
+    return Invalidity{
+        fmt::format("expression '{}' is not finite at {}", bad->text, d.describe(values)),
+        bad->where};
   out.resize(d.shape->vertexCount());
   d.shape->place(evaluator_->scalars(), out);
   if (const std::string_view fold = d.shape->fold(evaluator_->scalars()); !fold.empty())
       [[unlikely]]
-    return fmt::format("{} at {}", fold, d.describe(values));
+    return Invalidity{fmt::format("{} at {}", fold, d.describe(values)), d.shape_where};
+  return std::nullopt;
+}
+
+std::optional<std::string> PartModel::tryEvaluate(std::span<const double> values,
+                                                  std::vector<Vec3>& out) const {
+  if (auto bad = findFold(values, out)) [[unlikely]]
+    return std::move(bad->message);
   return std::nullopt;
 }
 
 void PartModel::evaluate(std::span<const double> values, std::vector<Vec3>& out) const {
-  if (auto bad = tryEvaluate(values, out)) [[unlikely]]
-    throw Error(std::move(*bad), definition_->shape_where);
+  if (auto bad = findFold(values, out)) [[unlikely]]
+    throw Error(std::move(bad->message), bad->where);
 }
 
 TriangleMesh PartModel::mesh(std::span<const double> values) const {

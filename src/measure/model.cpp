@@ -294,6 +294,8 @@ ScatterEstimate ForwardModel::scatterOf(const WorldMesh& mesh, int radiograph, i
   // The model's open-beam level in the white region (full-size coordinates).
   const PixelRect white = spec(radiograph).white_region;
   const double full_to_coarse = 1.0 / static_cast<double>(1 << coarse_level);
+  // at() maps pixels of a level to the coarse one: first full-size pixels,
+  // for the white region, then the level asked for.
   out.ratio = full_to_coarse;
   double white_sum = 0.0;
   constexpr int kGrid = 8;

@@ -1,7 +1,7 @@
 // The material curve a calibration ends with: exponential sums with M = 1, 2,
 // ... terms fitted to a measured table of (path length, intensity), the
 // smallest M that fits within the noise chosen, and the figures and plot that
-// show the work (thesis Figure 5.8: data, fitted curve, residual).
+// show the work (thesis Figure 5.8, docs/method.md: data, fitted curve, residual).
 #pragma once
 
 #include "xgauge/material/exponential_fit.h"

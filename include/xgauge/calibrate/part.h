@@ -1,5 +1,5 @@
 // Material calibration from radiographs of a part whose dimensions are known
-// (thesis 3.4b): the measurement problem with the material free.
+// (thesis 3.4b, docs/method.md): the measurement problem with the material free.
 //
 //   1. Initial material (thesis eq. 3.8): one exponential through I(0) = 1
 //      and the mean intensity I1 of a uniform region of known path x1,

@@ -1,4 +1,5 @@
-// Finding a wedge's ramp in a normalized radiograph (thesis 3.4a, steps 2-4),
+// Finding a wedge's ramp in a normalized radiograph (thesis 3.4a, steps 2-4;
+// docs/method.md),
 // which the thesis did by eye: the columns that see the ramp, and the rows
 // where it starts (the thin end) and ends (the thick end).
 //

@@ -1,4 +1,4 @@
-// Material calibration from one radiograph of a wedge (thesis 3.4a), done
+// Material calibration from one radiograph of a wedge (thesis 3.4a, docs/method.md), done
 // automatically:
 //   1. normalize (dark, flat, white region) and remove the detector's
 //      scintillator scatter (image/scatter.h), so that the curve is

@@ -20,7 +20,4 @@ class ThreadLimit {
   std::unique_ptr<Impl> impl_;
 };
 
-// The number of threads parallel loops may use right now.
-int maxThreads();
-
 }  // namespace xgauge

@@ -146,6 +146,7 @@ class PartModel {
   class Evaluator;
   struct Invalidity;
   std::optional<Invalidity> findInvalidity(std::span<const double> values) const;
+  std::optional<Invalidity> findFold(std::span<const double> values, std::vector<Vec3>& out) const;
   PartModel(std::shared_ptr<const Definition> definition, std::unique_ptr<Evaluator> evaluator);
 
   std::shared_ptr<const Definition> definition_;  // immutable, shared by copies

@@ -3,7 +3,8 @@
 // used by `xgauge normalize`, the measurement and both calibrations.
 //
 //   raw --(dark, flat: flat-field correction, bad pixels repaired)-->
-//       --(divided by the mean of an open-beam white region, eq. 3.9)-->
+//       --(divided by the mean of an open-beam white region, thesis eq. 3.9,
+//         docs/method.md)-->
 //       --(clamped to 1, or not)--> normalized
 #pragma once
 

@@ -1,4 +1,5 @@
-// `xgauge study`: the thesis's statistics generator. For a simulated dataset
+// `xgauge study`: the thesis's statistics generator
+// (docs/method.md). For a simulated dataset
 // (truth.json), measure every combination of shots asked for and tabulate the
 // errors against the truth: mean and max |error| per dimension and overall.
 //

@@ -43,7 +43,10 @@ struct Objective {
   // (0, upper_i - lower_i]; empty = 10 % of each range. Local methods only.
   std::vector<double> initial_step;
   // Called with x of size n, always within the bounds. Returns a finite value,
-  // or +inf where x is infeasible (a NaN or -inf is an Error). May throw; the
+  // or +inf where x is infeasible (a NaN or -inf is an Error). The NLopt
+  // methods need finite values: they are shown 10 max(1, the largest |f| seen
+  // in the run) for an infeasible point, worse than every feasible one; the
+  // result keeps the true +inf. May throw; the
   // exception leaves minimize() unchanged. Must be thread-safe when
   // OptimizeOptions::parallel_evaluations is set.
   std::function<double(std::span<const double> x)> f;

@@ -13,7 +13,7 @@
 #include "xgauge/lab/dataset.h"
 #include "xgauge/measure/measure.h"
 #include "xgauge/measure/model.h"
-#include "xgauge/measure/study.h"
+#include "xgauge/study/study.h"
 
 #include <fmt/format.h>
 

@@ -3,6 +3,7 @@
 #include "xgauge/calibrate/part.h"
 #include "xgauge/calibrate/wedge.h"
 #include "xgauge/measure/truth.h"
+#include "xgauge/report/calibration.h"
 
 #include <spdlog/spdlog.h>
 

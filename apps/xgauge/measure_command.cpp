@@ -8,6 +8,7 @@
 #include "xgauge/measure/measure.h"
 #include "xgauge/measure/model.h"
 #include "xgauge/measure/truth.h"
+#include "xgauge/report/measurement.h"
 
 #include <spdlog/sinks/ostream_sink.h>
 #include <spdlog/spdlog.h>

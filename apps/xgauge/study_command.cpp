@@ -1,6 +1,6 @@
 #include "study_command.h"
 
-#include "xgauge/measure/study.h"
+#include "xgauge/study/study.h"
 
 #include <spdlog/spdlog.h>
 

@@ -6,6 +6,7 @@
 #include "image/test_folder.h"
 #include "xgauge/calibrate/ramp.h"
 #include "xgauge/calibrate/wedge.h"
+#include "xgauge/report/calibration.h"
 
 #include "xgauge/core/progress.h"
 #include "xgauge/geometry/part_model.h"

@@ -1,6 +1,5 @@
 #include "xgauge/calibrate/part.h"
 
-#include "xgauge/calibrate/output.h"
 #include "xgauge/core/config.h"
 #include "xgauge/image/stats.h"
 #include "xgauge/measure/model.h"
@@ -211,54 +210,6 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
                   table.pixels, table.path_mm.size(), out.max_path_mm));
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
-}
-
-void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& result,
-                          const TrueCurve& true_curve, const std::filesystem::path& folder) {
-  nlohmann::json rounds = nlohmann::json::array();
-  for (const PartCalibrationRound& r : result.rounds)
-    rounds.push_back({{"material", r.material.toJson()},
-                      {"rms_residual", r.report.rms_residual},
-                      {"max_abs_residual", r.report.max_abs_residual},
-                      {"change", r.change},
-                      {"pose_loss", r.pose_loss},
-                      {"pixels", r.pixels}});
-  nlohmann::json poses = nlohmann::json::array();
-  for (const MeasuredRadiograph& r : result.measurement.radiographs)
-    poses.push_back({{"name", r.name}, {"pose", poseToJson(r.pose)}, {"loss", r.loss}});
-  const nlohmann::json figures = {
-      {"kind", "part"},
-      {"job", job.measurement().file.string()},
-      {"initial",
-       {{"radiograph",
-         job.measurement().radiographs[static_cast<size_t>(job.initial_radiograph)].name},
-        {"region",
-         {job.initial_region.x, job.initial_region.y, job.initial_region.width,
-          job.initial_region.height}},
-        {"path_mm", job.initial_path_mm},
-        {"intensity", result.initial_intensity},
-        {"mu_per_mm", result.initial_mu_per_mm}}},
-      {"rounds", rounds},
-      {"fit", toJson(result.fit)},
-      {"max_path_mm", result.max_path_mm},
-      {"material", result.material.toJson()},
-      {"poses", poses},
-      {"table", {{"path_mm", result.path_mm}, {"transmission", result.transmission}}},
-      {"seconds", result.seconds}};
-  CalibrationPlot plot;
-  plot.title = fmt::format("Calibration from a known part: {} path bins", result.path_mm.size());
-  plot.data_label = "pixels binned by path (scatter removed)";
-  plot.path_mm = result.path_mm;
-  plot.transmission = result.transmission;
-  plot.x_max_mm = result.max_path_mm;
-  writeCalibrationOutputs(folder, result.material, figures, plot, true_curve);
-
-  // The last pose fit, with the calibrated material: the residual images show
-  // what the model does not explain (thesis Figure 5.5, docs/method.md).
-  ForwardModel model(*job.inputs, result.material);
-  MeasurementResult fitted = result.measurement;
-  fitted.theta.resize(static_cast<size_t>(model.size()));  // without the free material's parameters
-  writeMeasurementOutputs(model, fitted, folder / "poses");
 }
 
 }  // namespace xgauge

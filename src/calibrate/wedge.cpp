@@ -1,6 +1,5 @@
 #include "xgauge/calibrate/wedge.h"
 
-#include "xgauge/calibrate/output.h"
 #include "xgauge/core/config.h"
 #include "xgauge/image/blur.h"
 #include "xgauge/image/radiograph.h"
@@ -145,50 +144,6 @@ WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
           out.rows.size(), out.x0_mm, out.x_max_mm));
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
-}
-
-void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& result,
-                           const TrueCurve& true_curve, const std::filesystem::path& folder) {
-  const RampDetection& ramp = result.ramp;
-  // The table on the final curve's path axis: eq. 3.7 maps x to x s + x0.
-  const double s = (result.x_max_mm - result.x0_mm) / result.x_max_mm;
-  std::vector<double> shifted;
-  for (double x : result.path_mm) shifted.push_back((x - result.x0_mm) / s);
-
-  nlohmann::json figures = {{"kind", "wedge"},
-                            {"job", job.file.string()},
-                            {"radiograph", job.radiograph.image.string()},
-                            {"ramp",
-                             {{"columns", {ramp.column_begin, ramp.column_end}},
-                              {"automatic_columns", ramp.automatic_columns},
-                              {"thin_end_row", ramp.thin_row},
-                              {"thick_end_row", ramp.thick_row},
-                              {"automatic_rows", ramp.automatic_rows},
-                              {"row_noise", ramp.row_noise},
-                              {"rows_used", {result.rows.front(), result.rows.back()}}}},
-                            {"geometry",
-                             {{"back_face_magnification", result.magnification},
-                              {"back_face_above_detector_mm", result.back_face_z_mm},
-                              {"x_max_mm", result.x_max_mm},
-                              {"max_thickness_mm", job.max_thickness_mm},
-                              {"ramp_length_mm", job.ramp_length_mm}}},
-                            {"fit", toJson(result.fit)},
-                            {"eq_3_7", {{"x0_mm", result.x0_mm}, {"x_max_mm", result.x_max_mm}}},
-                            {"material", result.material.toJson()},
-                            {"table",
-                             {{"row", result.rows},
-                              {"path_mm_as_fitted", result.path_mm},
-                              {"path_mm", shifted},
-                              {"transmission", result.transmission}}},
-                            {"seconds", result.seconds}};
-  CalibrationPlot plot;
-  plot.title = fmt::format("Wedge calibration: {} rows of {}", result.rows.size(),
-                           job.radiograph.image.filename().string());
-  plot.data_label = "rows of the ramp (scatter removed)";
-  plot.path_mm = shifted;
-  plot.transmission = result.transmission;
-  plot.x_max_mm = result.x_max_mm;
-  writeCalibrationOutputs(folder, result.material, figures, plot, true_curve);
 }
 
 }  // namespace xgauge

@@ -10,6 +10,7 @@
 #include "xgauge/image/tiff.h"
 #include "xgauge/material/exponential_sum.h"
 #include "xgauge/measure/model.h"
+#include "xgauge/report/measurement.h"
 #include "xgauge/xray/renderer.h"
 
 #include <gtest/gtest.h>

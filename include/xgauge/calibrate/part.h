@@ -87,10 +87,5 @@ struct PartCalibration {
 
 PartCalibration calibrateFromPart(const PartCalibrationJob& job);
 
-// material.json, calibration.json, calibration.png (curve.h, output.h), and
-// the last pose fit's result.json with its simulated and difference images
-// (measure/measure.h) in `folder`/poses.
-void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& result,
-                          const TrueCurve& true_curve, const std::filesystem::path& folder);
 
 }  // namespace xgauge

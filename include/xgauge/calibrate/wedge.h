@@ -82,11 +82,5 @@ struct WedgeCalibration {
 
 WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job);
 
-// material.json, calibration.json (every figure and the table) and
-// calibration.png (data, fitted curve and residual) into `folder`, each
-// written atomically. With `true_curve` (a simulated dataset's transmission
-// table), the figures also give the largest deviation from it over 0 .. x_max.
-void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& result,
-                           const TrueCurve& true_curve, const std::filesystem::path& folder);
 
 }  // namespace xgauge

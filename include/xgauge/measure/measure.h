@@ -66,11 +66,4 @@ struct MeasureOptions {
 MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
                           const MeasureOptions& options = {});
 
-// Writes result.json (with the SHA-256 of every input as it was read), the
-// final simulated radiographs and the difference images (float TIFF and
-// diverging-colour PNG) into `folder`, atomically, from the model that
-// measured.
-void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,
-                             const std::filesystem::path& folder);
-
 }  // namespace xgauge

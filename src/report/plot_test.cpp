@@ -1,8 +1,8 @@
-#include "xgauge/image/plot.h"
+#include "xgauge/report/plot.h"
 
 #include "xgauge/core/error.h"
 
-#include "test_folder.h"
+#include "image/test_folder.h"
 
 #include <gtest/gtest.h>
 

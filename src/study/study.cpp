@@ -1,4 +1,6 @@
-#include "xgauge/measure/study.h"
+#include "xgauge/study/study.h"
+
+#include "xgauge/report/measurement.h"
 
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/core/config.h"

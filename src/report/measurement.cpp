@@ -1,3 +1,5 @@
+#include "xgauge/report/measurement.h"
+
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/image/preview.h"
 #include "xgauge/image/tiff.h"

@@ -1,4 +1,4 @@
-#include "xgauge/image/plot.h"
+#include "xgauge/report/plot.h"
 
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/core/error.h"

@@ -1,0 +1,48 @@
+// What a calibration writes for people and scripts: the material file (the
+// machine-readable result jobs read), its figures as JSON and a plot of the
+// data with the fitted curve and its residual (the thesis's Figure 5.8,
+// docs/method.md). docs/formats.md documents every key.
+#pragma once
+
+#include "xgauge/calibrate/curve.h"
+#include "xgauge/calibrate/part.h"
+#include "xgauge/calibrate/wedge.h"
+#include "xgauge/material/exponential_sum.h"
+
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+#include <string>
+#include <vector>
+
+namespace xgauge {
+
+struct CalibrationPlot {
+  std::string title;
+  std::string data_label;
+  std::vector<double> path_mm, transmission;  // the data, on the final curve's path axis
+  double x_max_mm = 0.0;                      // the calibrated range
+};
+
+// Into `folder` (created if needed), each file atomically: calibration.png,
+// calibration.json (`figures` plus the residual of the material against the
+// data and, with a true curve, the largest deviation from it over 0 .. x_max)
+// and, last, material.json, so that a failure leaves no material file.
+void writeCalibrationOutputs(const std::filesystem::path& folder, const ExponentialSum& material,
+                             nlohmann::json figures, const CalibrationPlot& plot,
+                             const TrueCurve& true_curve);
+
+// material.json, calibration.json (every figure and the table) and
+// calibration.png (data, fitted curve and residual) into `folder`, each
+// written atomically. With `true_curve` (a simulated dataset's transmission
+// table), the figures also give the largest deviation from it over 0 .. x_max.
+void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& result,
+                           const TrueCurve& true_curve, const std::filesystem::path& folder);
+
+// material.json, calibration.json, calibration.png (as
+// writeCalibrationOutputs), and the last pose fit's result.json with its
+// simulated and difference images (report/measurement.h) in `folder`/poses.
+void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& result,
+                          const TrueCurve& true_curve, const std::filesystem::path& folder);
+
+}  // namespace xgauge

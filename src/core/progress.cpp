@@ -3,6 +3,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <unistd.h>
 
@@ -49,7 +50,7 @@ void ProgressBar::finish() {
 
 std::string ProgressBar::formatDuration(double seconds) {
   if (seconds < 60) return fmt::format("{:.1f}s", seconds);
-  const auto whole = static_cast<int64_t>(seconds + 0.5);
+  const auto whole = static_cast<int64_t>(std::llround(seconds));
   if (whole < 3600) return fmt::format("{}m{:02d}s", whole / 60, whole % 60);
   return fmt::format("{}h{:02d}m", whole / 3600, (whole % 3600) / 60);
 }

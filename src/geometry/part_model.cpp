@@ -357,7 +357,7 @@ std::optional<std::string> PartModel::tryEvaluate(std::span<const double> values
 
 void PartModel::evaluate(std::span<const double> values, std::vector<Vec3>& out) const {
   if (auto bad = findFold(values, out)) [[unlikely]]
-    throw Error(std::move(bad->message), bad->where);
+    throw Error(bad->message, bad->where);
 }
 
 TriangleMesh PartModel::mesh(std::span<const double> values) const {

@@ -11,7 +11,6 @@
 namespace xgauge {
 namespace {
 
-using testing::testFile;
 using testing::writeTestFile;
 
 // The reference cuboid (20 x 30 x 10 mm, centred) as a triangle soup.

@@ -19,7 +19,7 @@ inline std::filesystem::path testFile(const std::string& name) {
 }
 
 inline std::filesystem::path writeTestFile(const std::string& name, const std::string& contents) {
-  const auto path = testFile(name);
+  auto path = testFile(name);
   std::ofstream(path, std::ios::binary) << contents;
   return path;
 }

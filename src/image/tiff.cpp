@@ -1,20 +1,16 @@
 #include "xgauge/image/tiff.h"
 
-#include "xgauge/core/digest.h"
-
-#include <fcntl.h>
-#include <unistd.h>
-
-#include <cerrno>
-#include <cstring>
-
 #include "xgauge/core/atomic_file.h"
+#include "xgauge/core/digest.h"
 #include "xgauge/core/error.h"
 #include "xgauge/core/log.h"
 
+#include <fcntl.h>
 #include <tiffio.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>

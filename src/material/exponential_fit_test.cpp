@@ -301,7 +301,7 @@ TEST(ShiftAndScale, RejectsCurvesItCannotShift) {
 
 TEST(ExponentialFit, RejectsBadInput) {
   const Curve good = sample(ExponentialSum({{1.0, 0.05}}), 10.0, 11);
-  auto fit = [](std::vector<double> x, std::vector<double> t, int terms) {
+  auto fit = [](const std::vector<double>& x, const std::vector<double>& t, int terms) {
     return [=] { fitExponentialSum(x, t, terms); };
   };
   const auto& x = good.path_mm;

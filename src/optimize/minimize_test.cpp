@@ -35,7 +35,7 @@ double tolerance(Method method) {
 
 // A non-separable quadratic on a box whose coordinates have very different
 // scales (so normalisation matters); minimum 0 at `centre`.
-Objective shiftedQuadratic(std::vector<double> centre) {
+Objective shiftedQuadratic(const std::vector<double>& centre) {
   Objective o;
   o.lower = {-1.0, 0.0, 10.0, -50.0};
   o.upper = {2.0, 100.0, 10.5, 50.0};
@@ -427,7 +427,7 @@ TEST(Minimize, RejectsBadOptions) {
 }
 
 TEST(Minimize, RejectsBadObjectives) {
-  const auto expectError = [](Objective o, const std::string& field) {
+  const auto expectError = [](const Objective& o, const std::string& field) {
     try {
       minimize(o, {});
       ADD_FAILURE() << "accepted bad " << field;

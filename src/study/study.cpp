@@ -181,7 +181,7 @@ std::string StudySummary::table() const {
 StudySummary runStudy(const StudyOptions& options) {
   const DatasetTruth truth = DatasetTruth::load(options.dataset / "truth.json");
   const ConfigNode settings_node = ConfigNode::loadFile(options.settings);
-  nlohmann::json settings = settings_node.json();
+  const nlohmann::json& settings = settings_node.json();
   fs::create_directories(options.output / "runs");
 
   // The part and the machine from the dataset, the material from the

@@ -127,7 +127,8 @@ TEST(Renderer, CuboidSilhouetteIsTheProjectionOfItsCorners) {
       // Signed distance to the hull (positive inside), in pixels.
       double distance = HUGE_VAL;
       for (size_t i = 0; i < hull.size(); ++i) {
-        const Vec2 a = hull[i], b = hull[(i + 1) % hull.size()];
+        const Vec2& a = hull[i];
+        const Vec2& b = hull[(i + 1) % hull.size()];
         const Vec2 e = (b - a).normalized();
         distance = std::min(distance, e.x() * (c.y() - a.y()) - e.y() * (c.x() - a.x()));
       }

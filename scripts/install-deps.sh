@@ -18,7 +18,7 @@ packages=(
   libstb-dev           # PNG previews (stb_image_write)
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-jsonschema   # tests/validate_schemas.py: JSON files against docs/schemas
-  clang-format
+  clang-format clang-tidy   # scripts/tidy.sh
 )
 
 sudo_cmd=()

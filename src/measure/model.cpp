@@ -88,6 +88,7 @@ ForwardModel::ForwardModel(const MeasurementInputs& inputs, const ExponentialSum
     const RadiographSpec& s = spec(r);
     if (radiograph(r).levels.size() != levels)
       fail("radiographs {} and {} differ in size", spec(0).name, s.name);
+    pose_first_.push_back(layout_.size());
     switch (s.pattern) {
       case Acquisition::kFree:
       case Acquisition::kRotated: {
@@ -204,22 +205,19 @@ std::vector<int> ForwardModel::jointIndices() const {
 
 Pose ForwardModel::pose(std::span<const double> theta, int radiograph) const {
   const RadiographSpec& s = spec(radiograph);
-  auto at = [&](const std::string& name) {
-    return theta[static_cast<size_t>(layout_.index(s.name + name))];
-  };
+  // The hot path: the pose block's first index was found once, at construction
+  // (rotation then position, or the axis: model.h).
+  const double* p = theta.data() + pose_first_[static_cast<size_t>(radiograph)];
   switch (s.pattern) {
     case Acquisition::kFree:
     case Acquisition::kRotated: {
-      Pose out = Pose::fromEulerDeg(
-          Vec3(at("/rotation/rx"), at("/rotation/ry"), at("/rotation/rz")), Vec3::Zero());
-      out.translation_mm =
-          Vec3(at("/position/x"), at("/position/y"), at("/position/z")) - out.rotation * centre_part_;
+      Pose out = Pose::fromEulerDeg(Vec3(p[0], p[1], p[2]), Vec3::Zero());
+      out.translation_mm = Vec3(p[3], p[4], p[5]) - out.rotation * centre_part_;
       return out;
     }
     case Acquisition::kTranslated: {
       Pose out = pose(theta, s.reference);
-      out.translation_mm +=
-          s.distance_mm * axisFromAngles(at("/axis/azimuth"), at("/axis/elevation"));
+      out.translation_mm += s.distance_mm * axisFromAngles(p[0], p[1]);
       return out;
     }
     case Acquisition::kKnown:

@@ -155,6 +155,7 @@ class ForwardModel {
   TransmissionTable transmission_;
   ParameterLayout layout_;
   std::vector<int> free_dims_;
+  std::vector<int> pose_first_;  // first pose parameter of each radiograph
   Vec3 centre_part_;
   double part_size_mm_ = 0.0;
   // Scratch reused between evaluations.

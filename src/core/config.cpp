@@ -6,6 +6,7 @@
 #include <map>
 #include <cmath>
 #include <fstream>
+#include <iterator>
 #include <sstream>
 
 namespace xgauge {
@@ -48,6 +49,29 @@ size_t editDistance(std::string_view a, std::string_view b) {
   return row[b.size()];
 }
 
+// A short description of a value for "expected X, got Y" messages: scalars
+// as written (long strings cut), containers by kind and size, so a message
+// never grows with the input.
+std::string describeValue(const nlohmann::json& value) {
+  constexpr size_t kShown = 40;
+  switch (value.type()) {
+    case nlohmann::json::value_t::object:
+      return fmt::format("an object with {} keys", value.size());
+    case nlohmann::json::value_t::array:
+      return fmt::format("an array of {} elements", value.size());
+    case nlohmann::json::value_t::string: {
+      const auto& text = value.get_ref<const std::string&>();
+      if (text.size() <= kShown) return value.dump();
+      // Cutting may split a UTF-8 sequence: dump() replaces it rather than throwing.
+      return nlohmann::json(text.substr(0, kShown))
+                 .dump(-1, ' ', false, nlohmann::json::error_handler_t::replace) +
+             fmt::format("... ({} bytes)", text.size());
+    }
+    default:
+      return value.dump();
+  }
+}
+
 }  // namespace
 
 ConfigNode::ConfigNode(std::shared_ptr<Document> doc, const nlohmann::json* json, std::string path)
@@ -60,28 +84,167 @@ ConfigNode ConfigNode::fromJson(nlohmann::json document, const std::string& orig
   return ConfigNode(doc, &doc->root, "");
 }
 
-ConfigNode ConfigNode::parse(std::string_view text, const std::string& origin) {
-  try {
-    return fromJson(nlohmann::json::parse(text.begin(), text.end(), nullptr, true,
-                                          /*ignore_comments=*/true),
-                    origin);
-  } catch (const nlohmann::json::parse_error& e) {
-    // Turn the byte offset into a line and column.
-    SourceLocation where{origin, "", 1, 1};
-    const size_t end = std::min<size_t>(e.byte == 0 ? 0 : e.byte - 1, text.size());
-    for (size_t i = 0; i < end; ++i) {
-      if (text[i] == '\n') {
-        ++where.line;
-        where.column = 1;
-      } else {
-        ++where.column;
+namespace {
+
+// Deeper nesting than any configuration needs; the limit keeps a hostile
+// file from exhausting the stack of whoever walks or prints the tree.
+constexpr size_t kMaxNesting = 128;
+
+// "line L, column C" of byte `offset` of `text`, as a SourceLocation.
+SourceLocation locate(std::string_view text, size_t offset, const std::string& origin) {
+  SourceLocation where{origin, "", 1, 1};
+  const size_t end = std::min(offset, text.size());
+  for (size_t i = 0; i < end; ++i) {
+    if (text[i] == '\n') {
+      ++where.line;
+      where.column = 1;
+    } else {
+      ++where.column;
+    }
+  }
+  return where;
+}
+
+// The parser reads the text through this iterator, so the position of the
+// last character read is known at every SAX event (nlohmann's SAX interface
+// reports positions for syntax errors only).
+class TrackedIterator {
+ public:
+  using iterator_category = std::input_iterator_tag;
+  using value_type = char;
+  using difference_type = std::ptrdiff_t;
+  using pointer = const char*;
+  using reference = const char&;
+
+  TrackedIterator(const char* at, const char** cursor) : at_(at), cursor_(cursor) {}
+  reference operator*() const { return *at_; }
+  TrackedIterator& operator++() {
+    *cursor_ = ++at_;
+    return *this;
+  }
+  bool operator==(const TrackedIterator& other) const { return at_ == other.at_; }
+  bool operator!=(const TrackedIterator& other) const { return at_ != other.at_; }
+
+ private:
+  const char* at_;
+  const char** cursor_;
+};
+
+// Builds the document from nlohmann's SAX events, refusing what its DOM
+// parser would accept silently: nesting deeper than kMaxNesting and a key
+// given twice in one object (the DOM parser keeps the last). Every refusal,
+// and every syntax or number-range error, becomes an Error with the file,
+// line and column.
+class DocumentBuilder final : public nlohmann::json_sax<nlohmann::json> {
+ public:
+  DocumentBuilder(std::string_view text, const std::string& origin, const char** cursor)
+      : text_(text), origin_(origin), cursor_(cursor) {}
+
+  nlohmann::json& root() { return root_; }
+  // The refusal that stopped the parse, if any.
+  const std::optional<Error>& error() const { return error_; }
+
+  bool null() override { return add(nullptr); }
+  bool boolean(bool value) override { return add(value); }
+  bool number_integer(number_integer_t value) override { return add(value); }
+  bool number_unsigned(number_unsigned_t value) override { return add(value); }
+  bool number_float(number_float_t value, const string_t&) override { return add(value); }
+  bool string(string_t& value) override { return add(std::move(value)); }
+  bool binary(binary_t& value) override { return add(nlohmann::json::binary(std::move(value))); }
+  bool start_object(std::size_t) override { return open(nlohmann::json::object()); }
+  bool start_array(std::size_t) override { return open(nlohmann::json::array()); }
+  bool end_object() override { return close(); }
+  bool end_array() override { return close(); }
+  bool key(string_t& key) override {
+    if (open_.back()->contains(key))
+      return refuse(fmt::format("key '{}' appears twice in the object at {}", key,
+                                paths_.back().empty() ? "/" : paths_.back()));
+    key_ = std::move(key);
+    return true;
+  }
+  bool parse_error(std::size_t position, const std::string&,
+                   const nlohmann::json::exception& e) override {
+    std::string what = e.what();
+    // Drop nlohmann's "[json.exception.parse_error.101] parse error at line
+    // 1, column 2: " prefix: the location is ours.
+    for (const char* marker : {"syntax error", "number overflow"}) {
+      const auto at = what.find(marker);
+      if (at != std::string::npos) {
+        what = what.substr(at);
+        break;
       }
     }
-    std::string what = e.what();
-    const auto colon = what.find("syntax error");
-    throw Error("malformed JSON: " + (colon == std::string::npos ? what : what.substr(colon)),
-                where);
+    error_ = Error("malformed JSON: " + what,
+                   locate(text_, position == 0 ? 0 : position - 1, origin_));
+    return false;
   }
+
+ private:
+  // Where the next value goes: the root, the open array, or the open object
+  // under the last key.
+  nlohmann::json* place(nlohmann::json&& value) {
+    if (open_.empty()) {
+      root_ = std::move(value);
+      return &root_;
+    }
+    nlohmann::json& parent = *open_.back();
+    if (parent.is_array()) {
+      parent.push_back(std::move(value));
+      return &parent.back();
+    }
+    nlohmann::json& slot = parent[key_];
+    slot = std::move(value);
+    return &slot;
+  }
+  bool add(nlohmann::json&& value) {
+    place(std::move(value));
+    return true;
+  }
+  bool open(nlohmann::json&& container) {
+    if (open_.size() >= kMaxNesting)
+      return refuse(fmt::format("objects and arrays nested more than {} levels deep", kMaxNesting));
+    std::string path;
+    if (!open_.empty())
+      path = paths_.back() + "/" +
+             (open_.back()->is_array() ? std::to_string(open_.back()->size()) : escapeKey(key_));
+    open_.push_back(place(std::move(container)));
+    paths_.push_back(std::move(path));
+    return true;
+  }
+  bool close() {
+    open_.pop_back();
+    paths_.pop_back();
+    return true;
+  }
+  bool refuse(const std::string& message) {
+    const size_t offset = static_cast<size_t>(*cursor_ - text_.data());
+    error_ = Error(message, locate(text_, offset == 0 ? 0 : offset - 1, origin_));
+    return false;
+  }
+
+  std::string_view text_;
+  const std::string& origin_;
+  const char** cursor_;
+  nlohmann::json root_;
+  std::vector<nlohmann::json*> open_;
+  std::vector<std::string> paths_;  // JSON pointer of each open container
+  std::string key_;
+  std::optional<Error> error_;
+};
+
+}  // namespace
+
+ConfigNode ConfigNode::parse(std::string_view text, const std::string& origin) {
+  const char* cursor = text.data();
+  DocumentBuilder builder(text, origin, &cursor);
+  const bool parsed = nlohmann::json::sax_parse(
+      TrackedIterator(text.data(), &cursor), TrackedIterator(text.data() + text.size(), &cursor),
+      &builder, nlohmann::json::input_format_t::json, /*strict=*/true, /*ignore_comments=*/true);
+  if (!parsed) {
+    if (builder.error()) throw *builder.error();
+    throw Error("malformed JSON", SourceLocation::inFile(origin));
+  }
+  return fromJson(std::move(builder.root()), origin);
 }
 
 ConfigNode ConfigNode::loadFile(const std::filesystem::path& path) {
@@ -154,7 +317,7 @@ const nlohmann::json& ConfigNode::json() const {
 }
 
 double ConfigNode::number() const {
-  if (!json_->is_number()) fail(fmt::format("expected a number, got {}", json_->dump()));
+  if (!json_->is_number()) fail(fmt::format("expected a number, got {}", describeValue(*json_)));
   const double value = json_->get<double>();
   if (!std::isfinite(value)) fail("expected a finite number");
   return value;
@@ -168,7 +331,7 @@ double ConfigNode::number(double min, double max) const {
 }
 
 std::string ConfigNode::string() const {
-  if (!json_->is_string()) fail(fmt::format("expected a string, got {}", json_->dump()));
+  if (!json_->is_string()) fail(fmt::format("expected a string, got {}", describeValue(*json_)));
   return json_->get<std::string>();
 }
 

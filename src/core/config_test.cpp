@@ -70,6 +70,64 @@ TEST(Config, WrongTypeAndRange) {
   EXPECT_EQ(root.at("b").number(0, 5), 5.0);
 }
 
+// Parses `text` and returns the error it must raise.
+Error parseError(const std::string& text) {
+  try {
+    ConfigNode::parse(text, "hostile.json");
+  } catch (const Error& e) {
+    return e;
+  }
+  ADD_FAILURE() << "no error for " << text.substr(0, 80);
+  return Error("");
+}
+
+TEST(Config, DeepNestingIsRefusedWithItsLine) {
+  // 100,000 levels used to parse, then overflow the stack when a type error
+  // printed the value.
+  const std::string deep = "{\n\"start\": {\"width\":\n" + std::string(100000, '[') +
+                           std::string(100000, ']') + "}}";
+  const Error e = parseError(deep);
+  EXPECT_EQ(e.where().file, "hostile.json");
+  EXPECT_EQ(e.where().line, 3);
+  EXPECT_NE(std::string(e.what()).find("nested more than 128 levels"), std::string::npos)
+      << e.what();
+  // 128 levels are fine.
+  EXPECT_NO_THROW(ConfigNode::parse(std::string(128, '[') + std::string(128, ']'), "ok.json"));
+}
+
+TEST(Config, NumberOverflowNamesTheLine) {
+  const Error e = parseError("{\n  \"a\": 1,\n  \"b\": 1e400\n}");
+  EXPECT_EQ(e.where().line, 3);
+  EXPECT_NE(std::string(e.what()).find("number overflow"), std::string::npos) << e.what();
+  EXPECT_EQ(std::string(e.what()).find("json.exception"), std::string::npos) << e.what();
+  // An integer too long for 64 bits is read as a double, and overflows the same way.
+  EXPECT_EQ(parseError("[\n" + std::string(400, '9') + "]").where().line, 2);
+}
+
+TEST(Config, DuplicateKeyIsRefused) {
+  const Error e = parseError("{\"a\": {\"seed\": 1,\n \"seed\": 2}}");
+  EXPECT_EQ(e.where().line, 2);
+  EXPECT_NE(std::string(e.what()).find("key 'seed' appears twice in the object at /a"),
+            std::string::npos)
+      << e.what();
+  // The same key in two objects is fine.
+  EXPECT_NO_THROW(ConfigNode::parse(R"([{"a": 1}, {"a": 2}])", "ok.json"));
+}
+
+TEST(Config, WrongTypeMessageStaysShort) {
+  const std::string big = "{\"a\": [" + std::string(100, '[') + std::string(100, ']') + "], \"s\": \"" +
+                          std::string(100000, 'x') + "\"}";
+  const auto root = ConfigNode::parse(big, "t.json");
+  for (const char* key : {"a", "s"}) {
+    try {
+      root.at(key).number();
+      ADD_FAILURE();
+    } catch (const Error& e) {
+      EXPECT_LT(std::string(e.what()).size(), 120u) << e.what();
+    }
+  }
+}
+
 TEST(Config, MissingFile) {
   EXPECT_THROW(ConfigNode::loadFile("/nonexistent/x.json"), Error);
 }

@@ -12,6 +12,7 @@
 #include "xgauge/core/log.h"
 #include "xgauge/core/parallel.h"
 #include "xgauge/core/progress.h"
+#include "xgauge/image/tiff.h"
 #include "xgauge/version.h"
 
 #include <CLI/CLI.hpp>
@@ -29,6 +30,11 @@ int main(int argc, char** argv) {
   app.add_flag("-q,--quiet", quiet, "Only warnings and errors; no progress bars");
   app.add_flag("-v,--verbose", verbose, "Debug messages");
   app.add_option("-j,--threads", threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
+  uint64_t max_image_mb = xgauge::kDefaultTiffMemoryLimit >> 20;
+  app.add_option("--max-image-mb", max_image_mb,
+                 "Refuse TIFF files that would need more memory than this to read (MiB)")
+      ->check(CLI::Range(uint64_t{1}, uint64_t{1} << 20))
+      ->capture_default_str();
 
   xgauge::cli::RenderArguments render;
   xgauge::cli::addRenderCommand(app, render);
@@ -56,6 +62,7 @@ int main(int argc, char** argv) {
   xgauge::setProgressEnabled(!quiet);
   try {
     xgauge::ThreadLimit limit(threads);
+    xgauge::setTiffMemoryLimit(max_image_mb << 20);
     if (app.got_subcommand("render")) xgauge::cli::runRender(render);
     if (app.got_subcommand("simulate")) xgauge::cli::runSimulate(simulate);
     if (app.got_subcommand("normalize")) xgauge::cli::runNormalize(normalize);

@@ -10,6 +10,7 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdarg>
@@ -24,7 +25,6 @@
 namespace xgauge {
 namespace {
 
-constexpr int64_t kMaxPixels = int64_t{1} << 30;
 constexpr size_t kStripBytes = size_t{256} << 10;
 
 // libtiff reports problems through handlers. The global ones
@@ -168,19 +168,123 @@ std::string describePhotometric(uint16_t photometric) {
   }
 }
 
-// Decodes the whole first directory into `out`: width * height samples of
-// `sample_bytes` each, row-major, in native byte order.
-void decodeAll(TIFF* tif, void* out, size_t sample_bytes, uint32_t width, uint32_t height,
-               const TiffMessages& messages, const SourceLocation& where) {
-  auto* base = static_cast<unsigned char*>(out);
-  const size_t row_bytes = size_t{width} * sample_bytes;
+// Memory a file may make readTiff allocate (the image as floats, or one
+// strip or tile buffer); setTiffMemoryLimit() changes it.
+std::atomic<uint64_t> memory_limit{kDefaultTiffMemoryLimit};
+
+std::string mebibytes(uint64_t bytes) {
+  return fmt::format("{:.0f} MiB", static_cast<double>(bytes) / (1024.0 * 1024.0));
+}
+
+// How many bytes of decoded pixels one byte of compressed data can give at
+// most, for the codecs where that is known (0: no bound known). Deflate's
+// limit is 1032:1 (RFC 1951: 258 bytes per 2-bit code at best); LZW emits at
+// most 4096 bytes per 9-bit code; PackBits 128 bytes per 2.
+double maxExpansion(uint16_t compression) {
+  switch (compression) {
+    case COMPRESSION_NONE:
+      return 1.0;
+    case COMPRESSION_PACKBITS:
+      return 64.0;
+    case COMPRESSION_LZW:
+      return 4096.0 * 8.0 / 9.0;
+    case COMPRESSION_DEFLATE:
+    case COMPRESSION_ADOBE_DEFLATE:
+      return 1032.0;
+    default:
+      return 0.0;
+  }
+}
+
+// Refuses, before any pixel buffer exists, a file whose declared layout
+// would need more memory than the limit, or more pixel data than the file
+// can hold (a 200-byte file declaring 32768 x 32768 pixels).
+void checkDeclaredSize(TIFF* tif, uint32_t width, uint32_t height, size_t sample_bytes,
+                       uint64_t file_bytes, const TiffMessages& messages,
+                       const SourceLocation& where) {
+  const uint64_t limit = memory_limit.load();
+  const uint64_t image_bytes = uint64_t{width} * height * sizeof(float);
+  if (image_bytes > limit)
+    failAt(where,
+           "the file declares {}x{} pixels, {} as floats: more than the limit of {} "
+           "(--max-image-mb)",
+           width, height, mebibytes(image_bytes), mebibytes(limit));
+  const bool tiled = TIFFIsTiled(tif) != 0;
+  const tmsize_t block_bytes = tiled ? TIFFTileSize(tif) : TIFFStripSize(tif);
+  if (block_bytes <= 0)
+    failAt(where, "corrupt TIFF: invalid {} size{}", tiled ? "tile" : "strip",
+           libtiffSays(messages));
+  if (static_cast<uint64_t>(block_bytes) > limit)
+    failAt(where, "the file declares {} of {} bytes: more than the limit of {} (--max-image-mb)",
+           tiled ? "tiles" : "strips", block_bytes, mebibytes(limit));
+
+  uint16_t compression = COMPRESSION_NONE;
+  TIFFGetFieldDefaulted(tif, TIFFTAG_COMPRESSION, &compression);
+  const double expansion = maxExpansion(compression);
+  if (expansion <= 0.0) return;
+  uint64_t stored = 0;
+  const uint32_t blocks = tiled ? TIFFNumberOfTiles(tif) : TIFFNumberOfStrips(tif);
+  for (uint32_t i = 0; i < blocks; ++i) {
+    // The bytes of each block that lie inside the file.
+    const uint64_t offset = TIFFGetStrileOffset(tif, i);
+    if (offset < file_bytes) stored += std::min<uint64_t>(TIFFGetStrileByteCount(tif, i), file_bytes - offset);
+  }
+  const uint64_t needed = uint64_t{width} * height * sample_bytes;
+  if (static_cast<double>(needed) > expansion * static_cast<double>(stored))
+    failAt(where,
+           "the file declares {}x{} pixels of {} bytes ({} bytes) but holds only {} bytes of "
+           "pixel data: it is truncated or corrupt",
+           width, height, sample_bytes, needed, stored);
+}
+
+// Converts `count` samples to floats, remembering the first pixel (in
+// row-major order) that a radiograph cannot hold.
+template <typename Sample>
+struct SampleConverter {
+  int64_t bad_index = std::numeric_limits<int64_t>::max();
+  std::string bad_message;
+
+  void convert(const unsigned char* in, float* out, int count, int x0, int y, int width) {
+    for (int i = 0; i < count; ++i) {
+      Sample value;
+      std::memcpy(&value, in + size_t(i) * sizeof(Sample), sizeof(Sample));
+      if constexpr (std::is_floating_point_v<Sample>) {
+        const bool finite = std::isfinite(value);
+        bool too_large = false;
+        if constexpr (sizeof(Sample) > sizeof(float))
+          too_large = finite && std::abs(value) > static_cast<Sample>(std::numeric_limits<float>::max());
+        if (!finite || too_large) {
+          const int64_t index = int64_t{y} * width + x0 + i;
+          if (index < bad_index) {
+            bad_index = index;
+            bad_message =
+                finite ? fmt::format("pixel ({}, {}) = {} is beyond the float range", x0 + i, y, value)
+                       : fmt::format("pixel ({}, {}) is {}: a radiograph must hold finite values",
+                                     x0 + i, y, value);
+          }
+        }
+      }
+      out[i] = static_cast<float>(value);
+    }
+  }
+};
+
+// Decodes the first directory strip by strip (or tile by tile) straight into
+// a float image, so no more than one block of raw samples is held at once.
+template <typename Sample>
+Image readSamples(TIFF* tif, uint32_t width, uint32_t height, const TiffMessages& messages,
+                  const SourceLocation& where) {
+  const int w = static_cast<int>(width), h = static_cast<int>(height);
+  Image image(w, h);
+  SampleConverter<Sample> converter;
+  const size_t row_bytes = size_t{width} * sizeof(Sample);
   if (TIFFIsTiled(tif)) {
     uint32_t tile_width = 0, tile_height = 0;
     TIFFGetField(tif, TIFFTAG_TILEWIDTH, &tile_width);
     TIFFGetField(tif, TIFFTAG_TILELENGTH, &tile_height);
     const tmsize_t tile_bytes = TIFFTileSize(tif);
     if (tile_width == 0 || tile_height == 0 || tile_bytes <= 0 ||
-        static_cast<size_t>(tile_bytes) < size_t{tile_width} * tile_height * sample_bytes)
+        static_cast<uint64_t>(tile_bytes) < uint64_t{tile_width} * tile_height * sizeof(Sample))
       failAt(where, "corrupt TIFF: invalid tile size {}x{}{}", tile_width, tile_height,
              libtiffSays(messages));
     std::vector<unsigned char> tile(static_cast<size_t>(tile_bytes));
@@ -189,55 +293,44 @@ void decodeAll(TIFF* tif, void* out, size_t sample_bytes, uint32_t width, uint32
         if (TIFFReadTile(tif, tile.data(), tile_x, tile_y, 0, 0) < 0)
           failAt(where, "cannot decode the tile at pixel ({}, {}){}", tile_x, tile_y,
                  libtiffSays(messages));
-        // Copy the part of the tile inside the image (edge tiles are padded).
+        // The part of the tile inside the image (edge tiles are padded).
         const uint32_t rows = std::min(tile_height, height - tile_y);
-        const size_t copy_bytes = size_t{std::min(tile_width, width - tile_x)} * sample_bytes;
-        for (uint32_t r = 0; r < rows; ++r)
-          std::memcpy(base + (size_t{tile_y} + r) * row_bytes + size_t{tile_x} * sample_bytes,
-                      tile.data() + size_t{r} * tile_width * sample_bytes, copy_bytes);
+        const auto columns = static_cast<int>(std::min(tile_width, width - tile_x));
+        for (uint32_t r = 0; r < rows; ++r) {
+          const auto y = static_cast<int>(tile_y + r);
+          converter.convert(tile.data() + size_t{r} * tile_width * sizeof(Sample),
+                            image.row(y) + tile_x, columns, static_cast<int>(tile_x), y, w);
+        }
       }
     }
   } else {
     uint32_t rows_per_strip = 0;
     TIFFGetFieldDefaulted(tif, TIFFTAG_ROWSPERSTRIP, &rows_per_strip);
     if (rows_per_strip == 0 || rows_per_strip > height) rows_per_strip = height;
-    // Strips span whole rows, so each decodes straight into place.
+    std::vector<unsigned char> strip(size_t{rows_per_strip} * row_bytes);
     for (uint32_t row = 0; row < height; row += rows_per_strip) {
       const uint32_t rows = std::min(rows_per_strip, height - row);
       const auto bytes = static_cast<tmsize_t>(size_t{rows} * row_bytes);
-      if (TIFFReadEncodedStrip(tif, TIFFComputeStrip(tif, row, 0), base + size_t{row} * row_bytes,
-                               bytes) != bytes)
+      if (TIFFReadEncodedStrip(tif, TIFFComputeStrip(tif, row, 0), strip.data(), bytes) != bytes)
         failAt(where, "cannot decode the strip starting at row {}{}", row, libtiffSays(messages));
-    }
-  }
-}
-
-template <typename Sample>
-Image readSamples(TIFF* tif, uint32_t width, uint32_t height, const TiffMessages& messages,
-                  const SourceLocation& where) {
-  std::vector<Sample> samples(size_t{width} * height);
-  decodeAll(tif, samples.data(), sizeof(Sample), width, height, messages, where);
-  const int w = static_cast<int>(width), h = static_cast<int>(height);
-  Image image(w, h);
-  for (int y = 0; y < h; ++y) {
-    const Sample* in = samples.data() + static_cast<size_t>(y) * width;
-    float* out = image.row(y);
-    for (int x = 0; x < w; ++x) {
-      if constexpr (std::is_floating_point_v<Sample>) {
-        if (!std::isfinite(in[x]))
-          failAt(where, "pixel ({}, {}) is {}: a radiograph must hold finite values", x, y, in[x]);
-        if constexpr (sizeof(Sample) > sizeof(float)) {
-          if (std::abs(in[x]) > static_cast<Sample>(std::numeric_limits<float>::max()))
-            failAt(where, "pixel ({}, {}) = {} is beyond the float range", x, y, in[x]);
-        }
+      for (uint32_t r = 0; r < rows; ++r) {
+        const auto y = static_cast<int>(row + r);
+        converter.convert(strip.data() + size_t{r} * row_bytes, image.row(y), w, 0, y, w);
       }
-      out[x] = static_cast<float>(in[x]);
     }
   }
+  if (!converter.bad_message.empty()) failAt(where, "{}", converter.bad_message);
   return image;
 }
 
 }  // namespace
+
+void setTiffMemoryLimit(uint64_t bytes) {
+  if (bytes == 0) fail("the TIFF memory limit must be positive");
+  memory_limit.store(bytes);
+}
+
+uint64_t tiffMemoryLimit() { return memory_limit.load(); }
 
 Image readTiff(const std::filesystem::path& path, std::string* sha256) {
   const SourceLocation where = SourceLocation::inFile(path.string());
@@ -270,9 +363,27 @@ Image readTiff(const std::filesystem::path& path, std::string* sha256) {
     failAt(where, "unsupported photometric interpretation {}; only MinIsBlack grey is supported",
            describePhotometric(photometric));
   if (width == 0 || height == 0) failAt(where, "the image has zero size ({}x{})", width, height);
-  if (int64_t{width} * height > kMaxPixels)
-    failAt(where, "the image is {}x{} pixels; more than 2^30 pixels is not supported", width,
-           height);
+  if (width > uint32_t{std::numeric_limits<int>::max()} ||
+      height > uint32_t{std::numeric_limits<int>::max()})
+    failAt(where, "the file declares {}x{} pixels: too large", width, height);
+  if (!TIFFLastDirectory(tif.get()))
+    failAt(where,
+           "the file holds more than one image (a multi-page TIFF); a radiograph file must hold "
+           "exactly one");
+
+  const bool supported =
+      (sample_format == SAMPLEFORMAT_UINT && (bits == 8 || bits == 16 || bits == 32)) ||
+      (sample_format == SAMPLEFORMAT_IEEEFP && (bits == 32 || bits == 64));
+  if (!supported)
+    failAt(where,
+           "unsupported samples: {} (supported: 8-, 16- or 32-bit unsigned integer, 32- or "
+           "64-bit float)",
+           describeSamples(bits, sample_format));
+  std::error_code size_error;
+  const uintmax_t file_bytes = std::filesystem::file_size(path, size_error);
+  checkDeclaredSize(tif.get(), width, height, bits / 8u,
+                    size_error ? std::numeric_limits<uint64_t>::max() : file_bytes, messages,
+                    where);
 
   Image image;
   if (sample_format == SAMPLEFORMAT_UINT && bits == 8)
@@ -283,13 +394,8 @@ Image readTiff(const std::filesystem::path& path, std::string* sha256) {
     image = readSamples<uint32_t>(tif.get(), width, height, messages, where);
   else if (sample_format == SAMPLEFORMAT_IEEEFP && bits == 32)
     image = readSamples<float>(tif.get(), width, height, messages, where);
-  else if (sample_format == SAMPLEFORMAT_IEEEFP && bits == 64)
-    image = readSamples<double>(tif.get(), width, height, messages, where);
   else
-    failAt(where,
-           "unsupported samples: {} (supported: 8-, 16- or 32-bit unsigned integer, 32- or "
-           "64-bit float)",
-           describeSamples(bits, sample_format));
+    image = readSamples<double>(tif.get(), width, height, messages, where);
 
   for (const std::string& warning : messages.warnings)
     spdlog::debug("{}: libtiff warning: {}", path.string(), warning);

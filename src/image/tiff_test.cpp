@@ -1,5 +1,6 @@
 #include "xgauge/image/tiff.h"
 
+#include "hand_made_tiff.h"
 #include "test_folder.h"
 
 #include <gtest/gtest.h>
@@ -347,44 +348,80 @@ TEST(Tiff, ZeroSizeIsRejected) {
   // to write one).
   TestFolder folder;
   const auto path = folder / "zero.tif";
-  std::vector<unsigned char> bytes = {'I', 'I', 42, 0, 8, 0, 0, 0};
-  const auto u16 = [&](unsigned v) {
-    bytes.push_back(static_cast<unsigned char>(v & 0xff));
-    bytes.push_back(static_cast<unsigned char>(v >> 8));
-  };
-  const auto u32 = [&](unsigned v) {
-    u16(v & 0xffff);
-    u16(v >> 16);
-  };
-  const auto entry = [&](unsigned tag, unsigned type, unsigned value) {
-    u16(tag);
-    u16(type);
-    u32(1);
-    if (type == 3) {
-      u16(value);
-      u16(0);
-    } else {
-      u32(value);
-    }
-  };
-  u16(8);
-  entry(256, 4, 0);    // ImageWidth
-  entry(257, 4, 4);    // ImageLength
-  entry(258, 3, 8);    // BitsPerSample
-  entry(259, 3, 1);    // Compression: none
-  entry(262, 3, 1);    // Photometric: MinIsBlack
-  entry(273, 4, 200);  // StripOffsets
-  entry(278, 4, 4);    // RowsPerStrip
-  entry(279, 4, 0);    // StripByteCounts
-  u32(0);              // no next directory
-  bytes.resize(256, 0);
-  std::ofstream(path, std::ios::binary)
-      .write(reinterpret_cast<const char*>(bytes.data()),
-             static_cast<std::streamsize>(bytes.size()));
+  testing::writeDeclaredStripTiff(path, 0, 4, 8, 1, 1, 0, 256);
   ::testing::internal::CaptureStderr();
   const std::string message = messageOf(path);
   EXPECT_EQ(::testing::internal::GetCapturedStderr(), "");
   EXPECT_TRUE(contains(message, "zero") || contains(message, "Zero")) << message;
+}
+
+// Declared sizes are checked before any pixel buffer exists: these files
+// used to make readTiff allocate 2 GiB, 8 GiB and a 35 GB tile buffer.
+TEST(Tiff, HostileSizesAreRefusedBeforeAllocating) {
+  TestFolder folder;
+  const auto huge16 = folder / "huge16.tif", huge64 = folder / "huge64.tif";
+  testing::writeDeclaredStripTiff(huge16, 32768, 32768, 16, 1, 1, 100, 198);
+  testing::writeDeclaredStripTiff(huge64, 32768, 32768, 64, 3, 1, 100, 198);
+  for (const auto& path : {huge16, huge64}) {
+    const std::string message = messageOf(path);
+    EXPECT_TRUE(contains(message, "declares 32768x32768 pixels, 4096 MiB as floats: more than the "
+                                  "limit of 1024 MiB"))
+        << message;
+  }
+  const auto tile = folder / "tile.tif";
+  testing::writeDeclaredTileTiff(tile, 1090519056, 300);
+  const std::string tile_message = messageOf(tile);
+  EXPECT_TRUE(contains(tile_message, "tiles of 17448304896 bytes: more than the limit"))
+      << tile_message;
+}
+
+TEST(Tiff, DeclaredSizeMustFitTheFile) {
+  // Under the memory limit, but 256 bytes cannot hold 4096 x 4096 16-bit
+  // pixels, neither raw nor deflated (at most 1032:1).
+  TestFolder folder;
+  const auto raw = folder / "raw.tif", deflated = folder / "deflated.tif";
+  testing::writeDeclaredStripTiff(raw, 4096, 4096, 16, 1, 1, 56, 256);
+  testing::writeDeclaredStripTiff(deflated, 4096, 4096, 16, 1, 8, 56, 256);
+  for (const auto& path : {raw, deflated}) {
+    const std::string message = messageOf(path);
+    EXPECT_TRUE(contains(message, "declares 4096x4096 pixels of 2 bytes (33554432 bytes) but "
+                                  "holds only 56 bytes of pixel data"))
+        << path << ": " << message;
+  }
+}
+
+TEST(Tiff, MemoryLimitIsConfigurable) {
+  TestFolder folder;
+  const auto path = folder / "ok.tif";
+  writeTiff(path, Image(100, 100, 0.5f), TiffFormat::kFloat32);
+  const uint64_t before = tiffMemoryLimit();
+  setTiffMemoryLimit(100 * 100 * 4 - 1);
+  const std::string message = messageOf(path);
+  setTiffMemoryLimit(before);
+  EXPECT_TRUE(contains(message, "declares 100x100 pixels")) << message;
+  EXPECT_EQ(readTiff(path).width(), 100);
+  EXPECT_THROW(setTiffMemoryLimit(0), Error);
+}
+
+TEST(Tiff, MultiPageFileIsRefused) {
+  TestFolder folder;
+  const auto path = folder / "pages.tif";
+  TIFF* tif = TIFFOpen(path.c_str(), "w");
+  ASSERT_NE(tif, nullptr);
+  std::vector<unsigned char> row(8, 7);
+  for (int page = 0; page < 2; ++page) {
+    TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, 8);
+    TIFFSetField(tif, TIFFTAG_IMAGELENGTH, 1);
+    TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, 8);
+    TIFFSetField(tif, TIFFTAG_SAMPLESPERPIXEL, 1);
+    TIFFSetField(tif, TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
+    TIFFSetField(tif, TIFFTAG_ROWSPERSTRIP, 1);
+    ASSERT_EQ(TIFFWriteScanline(tif, row.data(), 0, 0), 1);
+    ASSERT_EQ(TIFFWriteDirectory(tif), 1);
+  }
+  TIFFClose(tif);
+  const std::string message = messageOf(path);
+  EXPECT_TRUE(contains(message, "more than one image (a multi-page TIFF)")) << message;
 }
 
 TEST(Tiff, ErrorsFromSeveralThreadsStayApart) {

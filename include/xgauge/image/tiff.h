@@ -13,6 +13,7 @@
 
 #include "xgauge/image/image.h"
 
+#include <cstdint>
 #include <filesystem>
 #include <string>
 
@@ -30,12 +31,21 @@ namespace xgauge {
 // Throws Error (naming the file) when the file is missing, not a TIFF or
 // corrupt (with libtiff's message), has more than one sample per pixel, an
 // unsupported bit depth or sample format (saying which), another photometric
-// interpretation (palette, MinIsWhite, ...), zero or more than 2^30 pixels, or
+// interpretation (palette, MinIsWhite, ...), more than one image (page), zero
+// size, a declared size beyond the memory limit below or beyond what the
+// file's bytes can hold (checked before any pixel buffer is allocated), or
 // a float pixel that is NaN, infinite or beyond the float range (naming the
 // first such pixel "(x, y)" in row-major order).
 // With `sha256`, also the SHA-256 of the file's bytes (core/digest.h), read
 // through the same open file.
 Image readTiff(const std::filesystem::path& path, std::string* sha256 = nullptr);
+
+// The most memory one readTiff() may allocate for a file: the image as 32-bit
+// floats, or one strip or tile buffer. The default is what a 16384 x 16384
+// radiograph needs (1 GiB); the CLI sets it with --max-image-mb.
+inline constexpr uint64_t kDefaultTiffMemoryLimit = uint64_t{16384} * 16384 * sizeof(float);
+void setTiffMemoryLimit(uint64_t bytes);
+uint64_t tiffMemoryLimit();
 
 enum class TiffFormat {
   kUInt16,   // values rounded to the nearest integer (halves away from zero) and

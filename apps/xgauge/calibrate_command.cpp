@@ -1,6 +1,7 @@
 #include "calibrate_command.h"
 
 #include "xgauge/calibrate/part.h"
+#include "xgauge/core/output.h"
 #include "xgauge/calibrate/wedge.h"
 #include "xgauge/measure/truth.h"
 #include "xgauge/report/calibration.h"
@@ -56,6 +57,8 @@ void addCalibrateCommand(CLI::App& app, CalibrateArguments& wedge, CalibrateArgu
 void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
                   const CalibrateArguments& part) {
   const CLI::App* cmd = app.get_subcommand("calibrate");
+  checkOutputFolder(cmd->got_subcommand("wedge") ? wedge.output : part.output);
+  OutputTransaction outputs;
   if (cmd->got_subcommand("wedge")) {
     const WedgeCalibrationJob job = WedgeCalibrationJob::load(wedge.job);
     const TrueCurve truth = trueCurve(wedge.truth);
@@ -78,6 +81,7 @@ void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
     writePartCalibration(job, result, truth, part.output);
     printMaterial(result.material, part.output);
   }
+  outputs.commit();
 }
 
 }  // namespace xgauge::cli

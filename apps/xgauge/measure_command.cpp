@@ -2,6 +2,7 @@
 
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/core/config.h"
+#include "xgauge/core/output.h"
 #include "xgauge/material/exponential_fit.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/measure/inputs.h"
@@ -27,6 +28,7 @@ void addMeasureCommand(CLI::App& app, MeasureArguments& args) {
 }
 
 void runMeasure(const MeasureArguments& args) {
+  checkOutputFolder(args.output);
   const MeasurementInputs inputs = loadMeasurementInputs(args.job);
   std::optional<DatasetTruth> truth;
   if (!args.truth.empty()) truth = DatasetTruth::load(args.truth);
@@ -52,9 +54,11 @@ void runMeasure(const MeasureArguments& args) {
   std::fputs(table.c_str(), stdout);
   spdlog::info("{} evaluations in {:.1f} s; final loss {:.6g}", result.evaluations, result.seconds,
                result.total_loss);
+  OutputTransaction outputs;
   writeMeasurementOutputs(model, result, args.output);
   spdlog::default_logger()->sinks().pop_back();
   writeFileAtomically(std::filesystem::path(args.output) / "measure.log", log.str() + table);
+  outputs.commit();
   spdlog::info("wrote {}/result.json", args.output);
 }
 
@@ -67,6 +71,7 @@ void addMaterialCommand(CLI::App& app, MaterialArguments& args) {
 }
 
 void runMaterial(const MaterialArguments& args) {
+  checkOutputFile(args.output);
   const DatasetTruth truth = DatasetTruth::load(args.truth);
   ExponentialFitReport report;
   const ExponentialSum material = fitExponentialSum(truth.path_mm, truth.transmission, args.terms, {}, &report);

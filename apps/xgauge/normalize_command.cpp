@@ -1,6 +1,7 @@
 #include "normalize_command.h"
 
 #include "xgauge/core/error.h"
+#include "xgauge/core/output.h"
 #include "xgauge/image/preview.h"
 #include "xgauge/image/pyramid.h"
 #include "xgauge/image/radiograph.h"
@@ -32,6 +33,9 @@ void addNormalizeCommand(CLI::App& app, NormalizeArguments& args) {
 }
 
 void runNormalize(const NormalizeArguments& args) {
+  checkOutputFile(args.output);
+  if (!args.png.empty()) checkOutputFile(args.png);
+  OutputTransaction outputs;
   if (args.dark.empty() && args.white.empty())
     fail("give --dark and --flat, or --white, or both: otherwise there is nothing to normalize by");
   std::optional<Image> dark, flat;
@@ -63,6 +67,7 @@ void runNormalize(const NormalizeArguments& args) {
     writePreviewPng(args.png, preview);
     spdlog::info("wrote {}", args.png);
   }
+  outputs.commit();
 }
 
 }  // namespace xgauge::cli

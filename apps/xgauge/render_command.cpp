@@ -1,6 +1,7 @@
 #include "render_command.h"
 
 #include "xgauge/core/error.h"
+#include "xgauge/core/output.h"
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/image/preview.h"
 #include "xgauge/image/tiff.h"
@@ -67,6 +68,9 @@ std::map<std::string, double> parseOverrides(const std::vector<std::string>& ite
 }  // namespace
 
 void runRender(const RenderArguments& args) {
+  checkOutputFile(args.output);
+  if (!args.png.empty()) checkOutputFile(args.png);
+  OutputTransaction outputs;
   // Inputs: part, dimension values, pose, machine, material.
   const bool stl = args.part.size() > 4 && args.part.substr(args.part.size() - 4) == ".stl";
   const PartModel part = stl ? PartModel::fromStl(args.part) : PartModel::load(args.part);
@@ -124,6 +128,7 @@ void runRender(const RenderArguments& args) {
     writePreviewPng(args.png, image);
     spdlog::info("wrote {}", args.png);
   }
+  outputs.commit();
 }
 
 }  // namespace xgauge::cli

@@ -1,5 +1,6 @@
 #include "simulate_command.h"
 
+#include "xgauge/core/output.h"
 #include "xgauge/lab/dataset.h"
 #include "xgauge/lab/recipe.h"
 
@@ -17,6 +18,8 @@ void addSimulateCommand(CLI::App& app, SimulateArguments& args) {
 
 void runSimulate(const SimulateArguments& args) {
   const Recipe recipe = Recipe::load(args.recipe);
+  checkOutputFolder(args.output);
+  OutputTransaction outputs;
   spdlog::info("simulating {} shots of {} into {}", recipe.shots.size(),
                recipe.part_file.filename().string(), args.output);
   const DatasetReport report = simulateDataset(recipe, args.output);
@@ -24,6 +27,7 @@ void runSimulate(const SimulateArguments& args) {
                "white region x={} y={} {}x{}",
                report.shots, report.seconds, report.seconds_per_shot, report.white_region.x,
                report.white_region.y, report.white_region.width, report.white_region.height);
+  outputs.commit();
 }
 
 }  // namespace xgauge::cli

@@ -1,5 +1,6 @@
 #include "study_command.h"
 
+#include "xgauge/core/output.h"
 #include "xgauge/study/study.h"
 
 #include <spdlog/spdlog.h>
@@ -21,6 +22,7 @@ void addStudyCommand(CLI::App& app, StudyArguments& args) {
 }
 
 void runStudyCommand(const StudyArguments& args) {
+  checkOutputFolder(args.output);
   StudyOptions options;
   options.dataset = args.dataset;
   options.settings = args.settings;

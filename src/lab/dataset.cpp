@@ -1,6 +1,7 @@
 #include "xgauge/lab/dataset.h"
 
 #include "xgauge/core/atomic_file.h"
+#include "xgauge/core/output.h"
 #include "xgauge/core/progress.h"
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/image/tiff.h"
@@ -147,7 +148,7 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
   const PolychromaticMaterial material(beam, material_layer);
   const TransmissionTable table = material.table(max_path_mm);
 
-  std::filesystem::create_directories(folder);
+  createOutputFolder(folder);
   const int shot_count = static_cast<int>(recipe.shots.size());
   ProgressBar progress("simulate", shot_count + 2);
 

@@ -1,6 +1,7 @@
 #include "xgauge/report/calibration.h"
 
 #include "xgauge/core/atomic_file.h"
+#include "xgauge/core/output.h"
 #include "xgauge/report/measurement.h"
 #include "xgauge/report/plot.h"
 #include "xgauge/version.h"
@@ -14,7 +15,7 @@ namespace xgauge {
 void writeCalibrationOutputs(const std::filesystem::path& folder, const ExponentialSum& material,
                              nlohmann::json figures, const CalibrationPlot& plot,
                              const TrueCurve& true_curve) {
-  std::filesystem::create_directories(folder);
+  createOutputFolder(folder);
   auto fitted = [&](double x) { return material.transmission(x); };
 
   // Residuals of the final material against the data.

@@ -1,6 +1,7 @@
 #include "xgauge/report/measurement.h"
 
 #include "xgauge/core/atomic_file.h"
+#include "xgauge/core/output.h"
 #include "xgauge/image/preview.h"
 #include "xgauge/image/tiff.h"
 #include "xgauge/loss/loss.h"
@@ -14,7 +15,7 @@ namespace xgauge {
 
 void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,
                              const std::filesystem::path& folder) {
-  std::filesystem::create_directories(folder);
+  createOutputFolder(folder);
   const MeasurementJob& job = model.job();
 
   // Final simulated radiographs and the differences over each roi.

@@ -3,6 +3,7 @@
 #include "xgauge/report/measurement.h"
 
 #include "xgauge/core/atomic_file.h"
+#include "xgauge/core/output.h"
 #include "xgauge/core/config.h"
 #include "xgauge/core/progress.h"
 #include "xgauge/material/exponential_fit.h"
@@ -182,7 +183,7 @@ StudySummary runStudy(const StudyOptions& options) {
   const DatasetTruth truth = DatasetTruth::load(options.dataset / "truth.json");
   const ConfigNode settings_node = ConfigNode::loadFile(options.settings);
   const nlohmann::json& settings = settings_node.json();
-  fs::create_directories(options.output / "runs");
+  createOutputFolder(options.output / "runs");
 
   // The part and the machine from the dataset, the material from the
   // settings or fitted, each radiograph prepared once for every run.
@@ -222,7 +223,7 @@ StudySummary runStudy(const StudyOptions& options) {
     const fs::path folder = options.output / "runs" / runs[i].id;
     const fs::path result_file = folder / "result.json";
     if (!fs::exists(result_file)) {
-      fs::create_directories(folder);
+      createOutputFolder(folder);
       writeFileAtomically(folder / "job.json", jobs[i].dump(2) + "\n");
       const MeasurementInputs run_inputs = studyRunInputs(jobs[i], inputs, options.settings, shots);
       ForwardModel model(run_inputs);

@@ -19,6 +19,7 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-jsonschema   # tests/validate_schemas.py: JSON files against docs/schemas
   clang-format clang-tidy   # scripts/tidy.sh
+  clang libclang-rt-14-dev llvm   # scripts/fuzz.sh: libFuzzer, sanitizers, symbolizer
 )
 
 sudo_cmd=()

@@ -99,6 +99,9 @@ void runRender(const RenderArguments& args) {
   std::vector<Vec3> world;
   poseVertices(pose, mesh.vertices, world);
   const WorldMesh posed{world, mesh.triangles};
+  if (auto why = outsideBeam(machine, world)) fail("{}: check the pose", *why);
+  if (auto why = shadowMissesDetector(machine, world))
+    fail("{}: check the pose (the part must be in the beam)", *why);
   const auto start = std::chrono::steady_clock::now();
   Image image;
   if (intensity) {

@@ -37,8 +37,8 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
   if (auto ramp = root.find("ramp")) {
     if (auto columns = ramp->find("columns")) {
       if (columns->size() != 2) columns->fail("expected [begin, end]");
-      job.ramp.columns = std::array<int, 2>{static_cast<int>((*columns)[0].number(0, 1e6)),
-                                            static_cast<int>((*columns)[1].number(0, 1e6))};
+      job.ramp.columns = std::array<int, 2>{static_cast<int>((*columns)[0].integer(0, 1000000)),
+                                            static_cast<int>((*columns)[1].integer(0, 1000000))};
     }
     if (auto rows = ramp->find("rows")) {
       if (rows->size() != 2) rows->fail("expected [thin end, thick end]");

@@ -1,6 +1,7 @@
 #include "xgauge/core/config.h"
 
 #include "xgauge/core/digest.h"
+#include "xgauge/core/file.h"
 
 #include <algorithm>
 #include <map>
@@ -248,12 +249,8 @@ ConfigNode ConfigNode::parse(std::string_view text, const std::string& origin) {
 }
 
 ConfigNode ConfigNode::loadFile(const std::filesystem::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error("cannot open file", SourceLocation::inFile(path.string()));
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  if (in.bad()) throw Error("cannot read file", SourceLocation::inFile(path.string()));
-  const std::string text = buffer.str();
+  // 256 MiB: far beyond any configuration, raw meshes included.
+  const std::string text = readFileContents(path, uint64_t{256} << 20, "a JSON file");
   ConfigNode node = parse(text, path.string());
   node.doc_->sha256 = sha256Hex(text);
   return node;
@@ -328,6 +325,14 @@ double ConfigNode::number(double min, double max) const {
   if (value < min || value > max)
     fail(fmt::format("value {} out of range [{}, {}]", value, min, max));
   return value;
+}
+
+int64_t ConfigNode::integer(int64_t min, int64_t max) const {
+  const double value = number();
+  if (value != std::floor(value)) fail(fmt::format("expected a whole number, got {}", value));
+  if (value < static_cast<double>(min) || value > static_cast<double>(max))
+    fail(fmt::format("value {} out of range [{}, {}]", value, min, max));
+  return static_cast<int64_t>(value);
 }
 
 std::string ConfigNode::string() const {

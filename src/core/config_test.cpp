@@ -128,6 +128,17 @@ TEST(Config, WrongTypeMessageStaysShort) {
   }
 }
 
+TEST(Config, DeviceIsNotReadForEver) {
+  // Found by fuzzing: a part model naming /dev/zero read until memory ran out.
+  try {
+    ConfigNode::loadFile("/dev/zero");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.where().file, "/dev/zero");
+    EXPECT_NE(std::string(e.what()).find("not a regular file"), std::string::npos) << e.what();
+  }
+}
+
 TEST(Config, MissingFile) {
   EXPECT_THROW(ConfigNode::loadFile("/nonexistent/x.json"), Error);
 }

@@ -1,5 +1,7 @@
 #include "xgauge/geometry/mesh.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -7,20 +9,22 @@
 
 namespace xgauge {
 
-double signedVolume(const TriangleMesh& mesh) {
-  if (mesh.vertices.empty()) return 0.0;
+double signedVolume(std::span<const Vec3> vertices, std::span<const Triangle> triangles) {
+  if (vertices.empty()) return 0.0;
   // Sum of signed tetrahedra (origin, a, b, c) / 6. Taking the origin at a
   // vertex keeps the terms small for parts far from the part origin.
-  const Vec3 origin = mesh.vertices.front();
+  const Vec3 origin = vertices.front();
   double six_volume = 0.0;
-  for (const Triangle& t : mesh.triangles) {
-    const Vec3 a = mesh.vertices[t[0]] - origin;
-    const Vec3 b = mesh.vertices[t[1]] - origin;
-    const Vec3 c = mesh.vertices[t[2]] - origin;
+  for (const Triangle& t : triangles) {
+    const Vec3 a = vertices[t[0]] - origin;
+    const Vec3 b = vertices[t[1]] - origin;
+    const Vec3 c = vertices[t[2]] - origin;
     six_volume += a.dot(b.cross(c));
   }
   return six_volume / 6.0;
 }
+
+double signedVolume(const TriangleMesh& mesh) { return signedVolume(mesh.vertices, mesh.triangles); }
 
 BoundingBox boundingBox(const TriangleMesh& mesh) {
   constexpr double kInf = std::numeric_limits<double>::infinity();
@@ -62,6 +66,7 @@ MeshCheck checkClosedMesh(const TriangleMesh& mesh) {
   if (mesh.triangles.empty()) return problem(P::kEmpty, "the mesh has no triangles");
 
   // Indices and degenerate triangles.
+  size_t zero_area = 0;
   const size_t vertex_count = mesh.vertices.size();
   const double diagonal = boundingBox(mesh).diagonal();
   const double min_twice_area = kZeroAreaTolerance * diagonal * diagonal;
@@ -76,11 +81,12 @@ MeshCheck checkClosedMesh(const TriangleMesh& mesh) {
       return problem(P::kDegenerateTriangle,
                      fmt::format("triangle {} is degenerate: it repeats a vertex ({}, {}, {})", i,
                                  t[0], t[1], t[2]));
+    // A sliver of three distinct, collinear vertices (CAD exports are full
+    // of them) adds nothing to any path; the edge checks below decide
+    // whether the surface around it is still closed.
     const Vec3& a = mesh.vertices[t[0]];
     const double twice_area = (mesh.vertices[t[1]] - a).cross(mesh.vertices[t[2]] - a).norm();
-    if (!(twice_area > min_twice_area))
-      return problem(P::kDegenerateTriangle,
-                     fmt::format("triangle {} is degenerate: it has zero area", i));
+    if (!(twice_area > min_twice_area)) ++zero_area;
   }
 
   // Every undirected edge: exactly two uses, in opposite directions.
@@ -119,6 +125,7 @@ MeshCheck checkClosedMesh(const TriangleMesh& mesh) {
 
   // Outward: positive volume, beyond rounding noise.
   MeshCheck check;
+  check.zero_area_triangles = zero_area;
   check.volume_mm3 = signedVolume(mesh);
   const double min_volume = kZeroAreaTolerance * diagonal * diagonal * diagonal;
   if (std::abs(check.volume_mm3) <= min_volume) {
@@ -132,9 +139,17 @@ MeshCheck checkClosedMesh(const TriangleMesh& mesh) {
   return check;
 }
 
+void noteZeroAreaTriangles(const MeshCheck& check, const std::string& source) {
+  if (check.zero_area_triangles > 0)
+    spdlog::info("{}: {} triangles have zero area; the surface is closed without them, and they "
+                 "add nothing to any path",
+                 source, check.zero_area_triangles);
+}
+
 void requireClosedMesh(const TriangleMesh& mesh, const SourceLocation& where) {
   const MeshCheck check = checkClosedMesh(mesh);
   if (!check.ok()) throw Error(check.message, where);
+  noteZeroAreaTriangles(check, where.str());
 }
 
 }  // namespace xgauge

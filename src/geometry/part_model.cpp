@@ -4,6 +4,7 @@
 #include "shape.h"
 
 #include "xgauge/core/config.h"
+#include "xgauge/geometry/mesh.h"
 #include "xgauge/geometry/stl.h"
 
 #include <fmt/ranges.h>
@@ -284,6 +285,25 @@ std::vector<double> PartModel::values(const std::map<std::string, double>& overr
   return result;
 }
 
+namespace {
+
+// Why a closed surface with these vertex positions is not a solid: negative
+// or (almost) zero signed volume; nullopt when it is one. Linear in the
+// triangle count, so cheap beside any render.
+std::optional<std::string> turnedInsideOut(std::span<const Vec3> vertices,
+                                           std::span<const Triangle> triangles) {
+  if (vertices.empty()) return std::nullopt;
+  Vec3 lo = vertices.front(), hi = lo;
+  for (const Vec3& v : vertices) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+  const double diagonal = (hi - lo).norm();
+  const double volume = signedVolume(vertices, triangles);
+  if (volume > kZeroAreaTolerance * diagonal * diagonal * diagonal) return std::nullopt;
+  return volume < 0 ? fmt::format("the surface turns inside out (signed volume {:.6g} mm^3)", volume)
+                    : fmt::format("the surface encloses no volume ({:.6g} mm^3)", volume);
+}
+
+}  // namespace
+
 // Why a part model cannot take some values: the message and where the rule
 // that is broken was written.
 struct PartModel::Invalidity {
@@ -345,6 +365,10 @@ std::optional<PartModel::Invalidity> PartModel::findFold(std::span<const double>
   if (const std::string_view fold = d.shape->fold(evaluator_->scalars()); !fold.empty())
       [[unlikely]]
     return Invalidity{fmt::format("{} at {}", fold, d.describe(values)), d.shape_where};
+  // The connectivity is fixed and was checked at load; what values can break
+  // is the orientation: a surface turned inside out, or flattened.
+  if (const auto why = turnedInsideOut(out, d.shape->triangles())) [[unlikely]]
+    return Invalidity{fmt::format("{} at {}", *why, d.describe(values)), d.shape_where};
   return std::nullopt;
 }
 

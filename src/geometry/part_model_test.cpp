@@ -310,6 +310,45 @@ TEST(PartModel, RawMeshMustBeClosedAndOutward) {
                   "vertex index 4 out of range (the mesh has 4 vertices)", "/shape/triangles/3/2");
 }
 
+// The connectivity is checked at load; the orientation can break at other
+// values, and is checked wherever vertices are made (issue: hostile input).
+TEST(PartModel, TurningInsideOutInsideTheBoundsIsRefusedWithTheValues) {
+  std::string text = R"({"description": "box whose x half-size is s - 5",
+    "dimensions": [{"name": "s", "nominal": 8, "min": 1, "max": 10, "unit": "mm"}],
+    "derived": [{"name": "hx", "expr": "s - 5"}],
+    "shape": {"type": "mesh", "vertices": [)";
+  for (int i = 0; i < 8; ++i)
+    text += fmt::format(R"({}["{}hx", "{}", "{}"])", i ? ", " : "", i & 1 ? "" : "-",
+                        i & 2 ? 2 : -2, i & 4 ? 3 : -3);
+  text += R"(], "triangles": [[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4],
+      [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]]}})";
+  const PartModel model = loadText(text);
+  std::vector<Vec3> vertices;
+  EXPECT_FALSE(model.tryEvaluate(std::vector<double>{8.0}, vertices));
+  const auto inverted = model.tryEvaluate(std::vector<double>{4.0}, vertices);
+  ASSERT_TRUE(inverted);
+  EXPECT_NE(inverted->find("the surface turns inside out (signed volume -48 mm^3) at s=4 mm"),
+            std::string::npos)
+      << *inverted;
+  const auto flat = model.tryEvaluate(std::vector<double>{5.0}, vertices);
+  ASSERT_TRUE(flat);
+  EXPECT_NE(flat->find("encloses no volume"), std::string::npos) << *flat;
+  EXPECT_THROW(model.mesh(std::vector<double>{4.0}), Error);
+}
+
+TEST(PartModel, RevolutionWithTooManyTrianglesIsRefusedBeforeBuilding) {
+  // Found by fuzzing: 64 points x 1e6 segments asked for 1.5 GB.
+  std::string profile;
+  for (int i = 0; i < 10; ++i)
+    profile += fmt::format("{}[{}, {}]", i ? ", " : "", 5 + std::cos(0.6 * i), std::sin(0.6 * i));
+  expectLoadError(R"({"description": "ring", "dimensions": [],
+      "shape": {"type": "revolution", "axis": "z", "segments": 1000000, "profile": [)" +
+                      profile + "]}}",
+                  "10 profile points x 1000000 segments make 20000000 triangles; at most "
+                  "16777216 are supported",
+                  "/shape/segments");
+}
+
 TEST(PartModel, RevolutionWithPolesAndWithout) {
   constexpr int kSegments = 12;
   const double sector = kSegments / 2.0 * std::sin(2 * std::numbers::pi / kSegments);

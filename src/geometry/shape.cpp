@@ -10,6 +10,9 @@ namespace xgauge {
 namespace {
 
 constexpr std::array<const char*, 3> kAxisNames = {"x", "y", "z"};
+// More triangles than any part a fit can use (and than 32-bit indices reach
+// comfortably); shapes beyond it are refused before anything is built.
+constexpr uint64_t kMaxShapeTriangles = uint64_t{1} << 24;
 
 SourceLocation child(SourceLocation where, std::string_view key) {
   where.key_path += "/";
@@ -304,14 +307,20 @@ ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& di
     spec.axes = {(c + 1) % 3, (c + 2) % 3, c};
     readPoints(shape.at("profile"), 2, spec.scalars);
     const ConfigNode segments = shape.at("segments");
-    const double count = segments.number(3, 1e6);
-    if (count != std::floor(count)) segments.fail("expected a whole number of segments");
-    spec.segments = static_cast<int>(count);
+    spec.segments = static_cast<int>(segments.integer(3, 1000000));
+    // Two triangles per profile edge and segment; refused before any is made.
+    const uint64_t triangles = uint64_t{2} * (spec.scalars.size() / 2) * static_cast<uint64_t>(spec.segments);
+    if (triangles > kMaxShapeTriangles)
+      segments.fail(fmt::format("{} profile points x {} segments make {} triangles; at most {} are "
+                                "supported",
+                                spec.scalars.size() / 2, spec.segments, triangles, kMaxShapeTriangles));
   } else if (type == "mesh") {
     spec.type = ShapeType::kMesh;
     readPoints(shape.at("vertices"), 3, spec.scalars);
     const size_t vertex_count = spec.scalars.size() / 3;
     const ConfigNode triangles = shape.at("triangles");
+    if (triangles.size() > kMaxShapeTriangles)
+      triangles.fail(fmt::format("{} triangles; at most {} are supported", triangles.size(), kMaxShapeTriangles));
     for (size_t i = 0; i < triangles.size(); ++i) {
       const ConfigNode t = triangles[i];
       if (!t.isArray() || t.size() != 3) t.fail("expected a list of 3 vertex indices");

@@ -1,5 +1,7 @@
 #include "xgauge/geometry/stl.h"
 
+#include "xgauge/core/file.h"
+
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -283,13 +285,9 @@ TriangleMesh weld(const TriangleSoup& soup, const std::string& file) {
 
 TriangleMesh readStl(const std::filesystem::path& path) {
   const std::string file = path.string();
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw Error("cannot open STL file", SourceLocation::inFile(file));
-  std::stringstream buffer;
-  buffer << in.rdbuf();
-  if (in.bad()) throw Error("cannot read STL file", SourceLocation::inFile(file));
-
-  TriangleMesh mesh = weld(parseStl(buffer.str(), file), file);
+  // 256 MiB: 5 million binary triangles, far beyond any part a fit can use.
+  const std::string bytes = readFileContents(path, uint64_t{256} << 20, "an STL file");
+  TriangleMesh mesh = weld(parseStl(bytes, file), file);
   const MeshCheck check = checkClosedMesh(mesh);
   if (check.problem == MeshCheck::Problem::kInward) {
     spdlog::warn("{}: triangles face inward; flipped them all", file);
@@ -297,6 +295,7 @@ TriangleMesh readStl(const std::filesystem::path& path) {
   } else if (!check.ok()) {
     throw Error(check.message, SourceLocation::inFile(file));
   }
+  noteZeroAreaTriangles(check, file);
   return mesh;
 }
 

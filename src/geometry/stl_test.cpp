@@ -96,6 +96,16 @@ TEST(Stl, InwardMeshIsFlipped) {
   EXPECT_NEAR(signedVolume(mesh), 6000.0, 1e-9);
 }
 
+TEST(Stl, DeviceIsRefused) {
+  try {
+    readStl("/dev/zero");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("/dev/zero: is not a regular file"), std::string::npos)
+        << e.what();
+  }
+}
+
 TEST(Stl, TruncatedBinaryIsRejected) {
   std::string bytes = binaryStl(cuboidSoup());
   bytes.resize(bytes.size() - 20);

@@ -177,9 +177,14 @@ std::string mebibytes(uint64_t bytes) {
 }
 
 // How many bytes of decoded pixels one byte of compressed data can give at
-// most, for the codecs where that is known (0: no bound known). Deflate's
+// most. Deflate's
 // limit is 1032:1 (RFC 1951: 258 bytes per 2-bit code at best); LZW emits at
 // most 4096 bytes per 9-bit code; PackBits 128 bytes per 2.
+//
+// Other codecs (ZSTD, LZMA, JPEG, ...) can pack a constant image further, but
+// a radiograph holds noise: no codec packs one 4096-fold, so that bound
+// applies to them, and a file declaring more pixels than it can hold is
+// refused before the image is allocated.
 double maxExpansion(uint16_t compression) {
   switch (compression) {
     case COMPRESSION_NONE:
@@ -192,7 +197,7 @@ double maxExpansion(uint16_t compression) {
     case COMPRESSION_ADOBE_DEFLATE:
       return 1032.0;
     default:
-      return 0.0;
+      return 4096.0;
   }
 }
 
@@ -217,11 +222,17 @@ void checkDeclaredSize(TIFF* tif, uint32_t width, uint32_t height, size_t sample
   if (static_cast<uint64_t>(block_bytes) > limit)
     failAt(where, "the file declares {} of {} bytes: more than the limit of {} (--max-image-mb)",
            tiled ? "tiles" : "strips", block_bytes, mebibytes(limit));
+  // Both are held at once while decoding.
+  if (image_bytes + static_cast<uint64_t>(block_bytes) > limit)
+    failAt(where,
+           "the file declares {}x{} pixels in {} of {} bytes: the image and one {} need {}, more "
+           "than the limit of {} (--max-image-mb)",
+           width, height, tiled ? "tiles" : "strips", block_bytes, tiled ? "tile" : "strip",
+           mebibytes(image_bytes + static_cast<uint64_t>(block_bytes)), mebibytes(limit));
 
   uint16_t compression = COMPRESSION_NONE;
   TIFFGetFieldDefaulted(tif, TIFFTAG_COMPRESSION, &compression);
   const double expansion = maxExpansion(compression);
-  if (expansion <= 0.0) return;
   uint64_t stored = 0;
   const uint32_t blocks = tiled ? TIFFNumberOfTiles(tif) : TIFFNumberOfStrips(tif);
   for (uint32_t i = 0; i < blocks; ++i) {

@@ -365,7 +365,7 @@ TEST(Tiff, HostileSizesAreRefusedBeforeAllocating) {
   for (const auto& path : {huge16, huge64}) {
     const std::string message = messageOf(path);
     EXPECT_TRUE(contains(message, "declares 32768x32768 pixels, 4096 MiB as floats: more than the "
-                                  "limit of 1024 MiB"))
+                                  "limit of 1088 MiB"))
         << message;
   }
   const auto tile = folder / "tile.tif";
@@ -387,6 +387,19 @@ TEST(Tiff, DeclaredSizeMustFitTheFile) {
     EXPECT_TRUE(contains(message, "declares 4096x4096 pixels of 2 bytes (33554432 bytes) but "
                                   "holds only 56 bytes of pixel data"))
         << path << ": " << message;
+  }
+}
+
+TEST(Tiff, CodecsWithoutAKnownBoundStillNeedTheBytes) {
+  // Found by fuzzing: a 402-byte ZSTD (50000) or JPEG (7) file declaring
+  // 16384 x 16384 pixels made readTiff allocate 1 GiB before decoding (the
+  // 8192 x 8192 here is within the memory limit).
+  TestFolder folder;
+  for (const uint16_t codec : {uint16_t{50000}, uint16_t{7}}) {
+    const auto path = folder / fmt::format("codec{}.tif", codec);
+    testing::writeDeclaredStripTiff(path, 8192, 8192, 8, 1, codec, 202, 402);
+    const std::string message = messageOf(path);
+    EXPECT_TRUE(contains(message, "but holds only 202 bytes of pixel data")) << message;
   }
 }
 

@@ -40,7 +40,7 @@ struct Acquisition {
     if (a.area_samples < 1 || a.area_samples > 8) node.at("area_samples").fail("expected 1 to 8");
     if (auto spot = node.find("focal_spot")) {
       a.focal_spot_fwhm_mm = spot->at("fwhm_mm").number(0.0, 5.0);
-      a.focal_spot_samples = static_cast<int>(spot->at("samples").number(1, 64));
+      a.focal_spot_samples = static_cast<int>(spot->at("samples").integer(1, 64));
     }
     if (auto scatter = node.find("scatter")) {
       a.scatter = true;
@@ -133,11 +133,7 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
   // Inputs: machine, beam, material, detector, part.
   const Machine machine = Machine::load(recipe.machine_file);
   const BeamModel beam = BeamModel::fromConfig(root.at("beam"));
-  const ConfigNode material_node = root.at("material");
-  Layer material_layer;
-  material_layer.compound = material_node.get<std::string>("compound");
-  material_layer.density_g_cm3 = material_node.at("density_g_cm3").number(1e-6, 30.0);
-  material_layer.thickness_mm = 0.0;
+  const Layer material_layer = Layer::fromConfig(root.at("material"), /*with_thickness=*/false);
   const Acquisition acquisition = Acquisition::fromConfig(root.at("detector"));
   root.finish();
 
@@ -147,6 +143,14 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
   const double max_path_mm = boundingBox(mesh).diagonal() * 1.01 + 1.0;
   const PolychromaticMaterial material(beam, material_layer);
   const TransmissionTable table = material.table(max_path_mm);
+  // Every shot must see the part, before anything is written.
+  for (const ShotPlan& shot : recipe.shots) {
+    std::vector<Vec3> world;
+    poseVertices(shot.pose, mesh.vertices, world);
+    auto why = outsideBeam(machine, world);
+    if (!why) why = shadowMissesDetector(machine, world);
+    if (why) fail("{}: shot {}: {}", recipe.file.string(), shot.name, *why);
+  }
 
   createOutputFolder(folder);
   const int shot_count = static_cast<int>(recipe.shots.size());

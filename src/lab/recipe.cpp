@@ -36,7 +36,7 @@ std::vector<ShotPlan> planShots(const ConfigNode& shots, const Vec3& pivot_part_
   std::vector<ShotPlan> plan;
 
   if (auto t = shots.find("translations")) {
-    const int count = static_cast<int>(t->at("count").number(1, 1000));
+    const int count = static_cast<int>(t->at("count").integer(1, 1000));
     const double distance = t->at("distance_mm").number(1e-6, 1e4);
     const Vec3 axis = unitAxis(t->at("axis"));
     for (int i = 0; i < count; ++i) {
@@ -103,9 +103,7 @@ Recipe Recipe::load(const std::filesystem::path& path) {
   const ConfigNode& root = *recipe.root;
   const auto folder = path.parent_path();
   recipe.description = root.get<std::string>("description", "");
-  const ConfigNode seed = root.at("seed");
-  if (!seed.json().is_number_unsigned()) seed.fail("expected an unsigned integer");
-  recipe.seed = seed.as<uint64_t>();
+  recipe.seed = static_cast<uint64_t>(root.at("seed").integer(0, int64_t{1} << 53));
   recipe.machine_file = folder / root.get<std::string>("machine");
 
   const ConfigNode part = root.at("part");

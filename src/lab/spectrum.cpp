@@ -107,7 +107,7 @@ double Layer::transmission(double energy_kev) const {
   return std::exp(-muPerMm(energy_kev) * thickness_mm);
 }
 
-Layer Layer::fromConfig(const ConfigNode& node) {
+Layer Layer::fromConfig(const ConfigNode& node, bool with_thickness) {
   Layer layer;
   const ConfigNode compound = node.at("compound");
   layer.compound = compound.string();
@@ -117,7 +117,7 @@ Layer Layer::fromConfig(const ConfigNode& node) {
     compound.fail(e.message());
   }
   layer.density_g_cm3 = node.at("density_g_cm3").number(1e-6, 30.0);
-  layer.thickness_mm = node.at("thickness_mm").number(0.0, 1000.0);
+  if (with_thickness) layer.thickness_mm = node.at("thickness_mm").number(0.0, 1000.0);
   return layer;
 }
 

@@ -2,6 +2,7 @@
 
 #include "xgauge/material/attenuation.h"
 
+#include <algorithm>
 #include <cmath>
 
 namespace xgauge {
@@ -33,6 +34,12 @@ ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
         const ConfigNode term = list[i];
         terms.push_back({term.at("weight").number(), term.at("mu_per_mm").number()});
       }
+      // A material file must describe something that attenuates: with every
+      // rate 0, a measurement would return its start values unchanged.
+      if (std::all_of(terms.begin(), terms.end(),
+                      [](const ExponentialTerm& t) { return t.mu_per_mm == 0.0; }))
+        list.fail("every mu_per_mm is 0: the material would not attenuate, and no dimension "
+                  "could be measured");
       return ExponentialSum(std::move(terms), description);
     }
     if (model == "monochromatic") {

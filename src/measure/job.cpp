@@ -99,7 +99,23 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
         if (b.size() != 2) b.fail("expected [min, max]");
         job.bounds[name] = {b[0].number(), b[1].number()};
         if (!(job.bounds[name][0] < job.bounds[name][1])) b.fail("min must be below max");
+        const Dimension& d = model.dimensions()[static_cast<size_t>(model.dimensionIndex(name))];
+        if (job.bounds[name][0] < d.min || job.bounds[name][1] > d.max)
+          b.fail(fmt::format("bounds [{}, {}] reach beyond the part model's [{}, {}] {}",
+                             job.bounds[name][0], job.bounds[name][1], d.min, d.max, d.unit));
       }
+    // A fixed dimension takes neither a start value nor bounds.
+    for (const auto& [name, value] : job.fixed_dimensions) {
+      const Dimension& d = model.dimensions()[static_cast<size_t>(model.dimensionIndex(name))];
+      if (value < d.min || value > d.max)
+        dims->at("fixed").at(name).fail(fmt::format(
+            "fixed value {} lies outside the part model's bounds [{}, {}] {}", value, d.min, d.max,
+            d.unit));
+      for (const char* key : {"start", "bounds"})
+        if (auto node = dims->find(key); node && node->has(name))
+          node->at(name).fail(fmt::format("'{}' is fixed; a {} does not apply to it", name,
+                                          key == std::string("start") ? "start value" : "bound"));
+    }
   }
   for (size_t i = 0; i < is_free.size(); ++i)
     if (is_free[i]) job.free_dimensions.push_back(model.dimensions()[i].name);
@@ -112,6 +128,21 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
           .at("start")
           .at(name)
           .fail(fmt::format("start {} lies outside the bounds [{}, {}]", value, b[0], b[1]));
+  }
+  // The part model's constraints at the values the fit starts from.
+  {
+    std::vector<double> values = model.nominalValues();
+    for (const auto& [name, value] : job.fixed_dimensions)
+      values[static_cast<size_t>(model.dimensionIndex(name))] = value;
+    for (const auto& [name, value] : job.start)
+      values[static_cast<size_t>(model.dimensionIndex(name))] = value;
+    if (const auto why = model.invalidity(values)) {
+      const ConfigNode dims = root.has("dimensions") ? root.at("dimensions") : root;
+      dims.fail(fmt::format("the start values ({}) do not make a valid part: {}",
+                            root.has("dimensions") ? "the nominal values with the job's start and fixed values"
+                                                   : "the part model's nominal values",
+                            *why));
+    }
   }
 
   if (auto scatter = root.find("scatter")) job.scatter = ScatterModel::fromConfig(*scatter);
@@ -175,7 +206,7 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
   const std::string loss = root.get<std::string>("loss", "l1");
   if (loss != "l1" && loss != "l2") root.at("loss").fail("expected \"l1\" or \"l2\"");
   job.loss = lossKindFromName(loss);
-  if (auto seed = root.find("seed")) job.seed = static_cast<uint64_t>(seed->number(0, 1e15));
+  if (auto seed = root.find("seed")) job.seed = static_cast<uint64_t>(seed->integer(0, int64_t{1} << 53));
   return job;
 }
 

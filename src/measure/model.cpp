@@ -30,6 +30,32 @@ double ScatterEstimate::at(double u_level, double v_level) const {
          fy * ((1 - fx) * value(x0, y1) + fx * value(x1, y1));
 }
 
+namespace {
+
+// Refuses pose bounds under which the part can never be inside the beam or
+// cast a shadow on the detector; `reach_mm` bounds the distance from the
+// part's centre to any of its points.
+void checkPoseBounds(const MeasurementJob& job, const Machine& machine, double reach_mm) {
+  const auto& c = job.centre_bounds_mm;
+  const double d = machine.source_detector_distance_mm;
+  const SourceLocation where = SourceLocation::at(job.file.string(), "/pose_bounds/centre_mm");
+  const double z0 = std::max(c[2][0] - reach_mm, 1e-6), z1 = std::min(c[2][1] + reach_mm, d - 1e-6);
+  if (c[2][1] - reach_mm <= 0.0 || c[2][0] + reach_mm >= d || z0 >= z1)
+    failAt(where,
+           "centre z in [{}, {}] mm keeps the part (reaching {:.1f} mm from its centre) out of "
+           "the beam: it must lie between the detector (z = 0) and the source (z = {} mm)",
+           c[2][0], c[2][1], reach_mm, d);
+  // The shadows of every allowed position lie within the shadow of this box.
+  std::vector<Vec3> corners;
+  for (int k = 0; k < 8; ++k)
+    corners.emplace_back(k & 1 ? c[0][1] + reach_mm : c[0][0] - reach_mm,
+                         k & 2 ? c[1][1] + reach_mm : c[1][0] - reach_mm, k & 4 ? z1 : z0);
+  if (auto why = shadowMissesDetector(machine, corners))
+    failAt(where, "no centre within these bounds puts the part in view: {}", *why);
+}
+
+}  // namespace
+
 ForwardModel::ForwardModel(const MeasurementInputs& inputs)
     : ForwardModel(inputs, [&]() -> const ExponentialSum& {
         if (!inputs.material) fail("{}: the job names no material", inputs.job.file.string());
@@ -74,7 +100,10 @@ ForwardModel::ForwardModel(const MeasurementInputs& inputs, const ExponentialSum
     names.push_back(d.name), lower.push_back(lo), upper.push_back(hi), start.push_back(value);
   }
   layout_.add("dim", ParameterKind::kDimension, names, lower, upper, start);
-  part_.validate(layout_.start());
+  if (const auto why = part_.invalidity(layout_.start()))
+    failAt(SourceLocation::at(job.file.string(), "/dimensions"),
+           "the values the fit starts from do not make a valid part: {}", *why);
+  checkPoseBounds(job, machine(), 0.5 * part_size_mm_);
 
   // The material: tabulated over the longest chord the part can have.
   double longest = 0.0;

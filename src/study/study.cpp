@@ -5,6 +5,8 @@
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/core/output.h"
 #include "xgauge/core/config.h"
+#include "xgauge/core/digest.h"
+#include "xgauge/version.h"
 #include "xgauge/core/progress.h"
 #include "xgauge/material/exponential_fit.h"
 #include "xgauge/measure/job.h"
@@ -16,13 +18,92 @@
 #include <tbb/parallel_for.h>
 
 #include <fstream>
+#include <map>
 #include <mutex>
+#include <optional>
 
 namespace xgauge {
 
 namespace {
 
 namespace fs = std::filesystem;
+
+// SHA-256 of whole files, each computed once (the part and the radiographs
+// every run names).
+class FileDigests {
+ public:
+  std::string of(const fs::path& path) {
+    {
+      const std::lock_guard lock(mutex_);
+      const auto it = known_.find(path.string());
+      if (it != known_.end()) return it->second;
+    }
+    std::ifstream in(path, std::ios::binary);
+    if (!in) throw Error("cannot open file", SourceLocation::inFile(path.string()));
+    Sha256 hash;
+    std::vector<char> buffer(size_t{1} << 20);
+    while (in) {
+      in.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+      hash.update(buffer.data(), static_cast<size_t>(in.gcount()));
+    }
+    if (in.bad()) throw Error("cannot read file", SourceLocation::inFile(path.string()));
+    const std::string digest = hash.hex();
+    const std::lock_guard lock(mutex_);
+    known_.emplace(path.string(), digest);
+    return digest;
+  }
+
+ private:
+  std::mutex mutex_;
+  std::map<std::string, std::string> known_;
+};
+
+// What a run's result depends on: the software, its job (settings, start
+// values, bounds, seed, shots), the machine, the material, whether images
+// were asked for, and the bytes of the part model and of every radiograph
+// and frame the job names. A run whose fingerprint differs is measured again.
+std::string runFingerprint(const nlohmann::json& job, const DatasetTruth& truth,
+                           const StudyInputs& inputs, bool images, FileDigests& digests) {
+  std::string text = "xgauge " XGAUGE_VERSION_STRING "\n";
+  text += "job " + job.dump() + "\n";
+  text += "machine " + truth.machine.dump() + "\n";
+  text += "material " + inputs.material.toJson().dump() + "\n";
+  text += fmt::format("images {}\n", images);
+  text += "part " + digests.of(truth.part_file) + "\n";
+  for (const auto& radiograph : job.at("radiographs"))
+    for (const char* key : {"image", "dark", "flat"})
+      if (radiograph.contains(key))
+        text += fmt::format("{} {}\n", key, digests.of(radiograph.at(key).get<std::string>()));
+  return sha256Hex(text);
+}
+
+// The first line of a small text file; empty when it is missing.
+std::string readText(const fs::path& path) {
+  std::ifstream in(path);
+  std::string line;
+  std::getline(in, line);
+  return line;
+}
+
+// A run's result.json (written by this study, with or without --images),
+// read through ConfigNode so that a damaged file is named.
+StudyRun readRunResult(const fs::path& file, const std::string& id, const DatasetTruth& truth,
+                       const std::vector<std::string>& free_dimensions) {
+  const ConfigNode root = ConfigNode::loadFile(file);
+  StudyRun run{id, {}, root.at("seconds").number()};
+  const ConfigNode dims = root.at("dimensions");
+  for (size_t k = 0; k < dims.size(); ++k) {
+    const ConfigNode d = dims[k];
+    if (!d.at("free").as<bool>()) continue;
+    const std::string name = d.get<std::string>("name");
+    const auto true_value = truth.dimensions.find(name);
+    if (true_value == truth.dimensions.end()) d.at("name").fail("not a dimension of the dataset");
+    run.error_mm[name] = d.at("value_mm").number() - true_value->second;
+  }
+  for (const auto& name : free_dimensions)
+    if (!run.error_mm.count(name)) dims.fail(fmt::format("no free dimension '{}'", name));
+  return run;
+}
 
 struct Combination {
   std::string id;
@@ -219,11 +300,31 @@ StudySummary runStudy(const StudyOptions& options) {
   setProgressEnabled(false);  // no bars from the runs themselves
   const auto level = spdlog::get_level();
   spdlog::set_level(spdlog::level::warn);
+  FileDigests digests;
   tbb::parallel_for(size_t{0}, runs.size(), [&](size_t i) {
     const fs::path folder = options.output / "runs" / runs[i].id;
     const fs::path result_file = folder / "result.json";
-    if (!fs::exists(result_file)) {
+    const fs::path fingerprint_file = folder / "fingerprint.sha256";
+    const std::string fingerprint =
+        runFingerprint(jobs[i], truth, inputs, options.images, digests);
+    std::optional<StudyRun> run;
+    if (fs::exists(result_file)) {
+      if (readText(fingerprint_file) != fingerprint) {
+        spdlog::warn("run {}: measured with other settings or inputs; measuring again", runs[i].id);
+      } else {
+        try {
+          run = readRunResult(result_file, runs[i].id, truth, free_dimensions);
+        } catch (const Error& e) {
+          spdlog::warn("run {}: cannot use the earlier result ({}); measuring again", runs[i].id,
+                       e.what());
+        }
+      }
+    }
+    if (!run) {
       createOutputFolder(folder);
+      // The fingerprint goes last: a run cut short is never taken as done.
+      std::error_code ignored;
+      fs::remove(fingerprint_file, ignored);
       writeFileAtomically(folder / "job.json", jobs[i].dump(2) + "\n");
       const MeasurementInputs run_inputs = studyRunInputs(jobs[i], inputs, options.settings, shots);
       ForwardModel model(run_inputs);
@@ -240,14 +341,10 @@ StudySummary runStudy(const StudyOptions& options) {
                                                          {"total_loss", result.total_loss}})
                                                  .dump(2) + "\n");
       }
+      writeFileAtomically(fingerprint_file, fingerprint + "\n");
+      run = readRunResult(result_file, runs[i].id, truth, free_dimensions);
     }
-    std::ifstream in(result_file);
-    const auto result = nlohmann::json::parse(in);
-    StudyRun run{runs[i].id, {}, result.value("seconds", 0.0)};
-    for (const auto& d : result["dimensions"])
-      if (d["free"].get<bool>())
-        run.error_mm[d["name"]] = d["value_mm"].get<double>() - truth.dimensions.at(d["name"]);
-    summary.runs[i] = run;
+    summary.runs[i] = *run;
     progress.advance();
   });
   spdlog::set_level(level);

@@ -23,8 +23,8 @@ Machine Machine::fromConfig(const ConfigNode& node) {
   Machine m;
   m.source_detector_distance_mm = node.at("source_detector_distance_mm").number(1.0, 1e5);
   const ConfigNode detector = node.at("detector");
-  m.columns = static_cast<int>(detector.at("columns").number(1, 65536));
-  m.rows = static_cast<int>(detector.at("rows").number(1, 65536));
+  m.columns = static_cast<int>(detector.at("columns").integer(1, 65536));
+  m.rows = static_cast<int>(detector.at("rows").integer(1, 65536));
   if (detector.at("columns").number() != m.columns) detector.at("columns").fail("expected a whole number");
   if (detector.at("rows").number() != m.rows) detector.at("rows").fail("expected a whole number");
   const auto pitch = pair(detector.at("pixel_pitch_mm"), 1e-6, 100.0);

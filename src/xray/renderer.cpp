@@ -2,6 +2,8 @@
 
 #include "rasterizer.h"
 
+#include <algorithm>
+#include <limits>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
@@ -207,6 +209,22 @@ std::optional<std::string> outsideBeam(const Machine& machine,
           i, z, d);
   }
   return std::nullopt;
+}
+
+std::optional<std::string> shadowMissesDetector(const Machine& machine,
+                                                std::span<const Vec3> world_vertices_mm) {
+  if (world_vertices_mm.empty()) return "the part has no vertices";
+  double u0 = std::numeric_limits<double>::infinity(), v0 = u0, u1 = -u0, v1 = -u0;
+  for (const Vec3& p : world_vertices_mm) {
+    const Vec2 q = machine.project(p);
+    u0 = std::min(u0, q.x()), u1 = std::max(u1, q.x());
+    v0 = std::min(v0, q.y()), v1 = std::max(v1, q.y());
+  }
+  if (u1 > 0.0 && u0 < machine.columns && v1 > 0.0 && v0 < machine.rows) return std::nullopt;
+  return fmt::format(
+      "the part's shadow (columns {:.0f} to {:.0f}, rows {:.0f} to {:.0f}) misses the {}x{} "
+      "detector",
+      u0, u1, v0, v1, machine.columns, machine.rows);
 }
 
 void poseVertices(const Pose& pose, std::span<const Vec3> part_vertices,

@@ -265,6 +265,31 @@ TEST(Renderer, WatertightPrismJaw10000Poses) {
   checkWatertight(jaw.mesh(jaw.nominalValues()), Vec3(10.5, 20.0, 6.5), 10000, 1);
 }
 
+// CAD exports hold zero-area slivers; a closed surface with one renders as
+// watertight as without, and to the same paths.
+TEST(Renderer, ZeroAreaSliverKeepsTheSurfaceWatertight) {
+  const TriangleMesh plain = cuboid(20, 30, 10);
+  TriangleMesh sliver = plain;
+  sliver.vertices.push_back(0.5 * (plain.vertices[0] + plain.vertices[1]));  // m = 8
+  sliver.triangles[0] = {0, 2, 8};
+  sliver.triangles.push_back({8, 2, 1});
+  sliver.triangles.push_back({0, 8, 1});  // zero area
+  ASSERT_EQ(checkClosedMesh(sliver).zero_area_triangles, 1u);
+  checkWatertight(sliver, Vec3::Zero(), 2000, 3);
+  const Machine m = squareMachine(128, 0.8);
+  std::mt19937_64 rng(4);
+  std::vector<Vec3> a, b;
+  for (int trial = 0; trial < 50; ++trial) {
+    const Pose pose = randomPose(rng, 500.0, 15.0);
+    ImageT<double> with, without;
+    renderPathLength(m, posed(sliver, pose, a), {}, with);
+    renderPathLength(m, posed(plain, pose, b), {}, without);
+    for (int v = 0; v < m.rows; ++v)
+      for (int u = 0; u < m.columns; ++u)
+        ASSERT_NEAR(with(u, v), without(u, v), 1e-9) << "pose " << trial << " pixel " << u << ", " << v;
+  }
+}
+
 TEST(Renderer, WatertightCylinder10000Poses) {
   const PartModel cylinder = PartModel::load(kParts + "cylinder.json");
   checkWatertight(cylinder.mesh(cylinder.nominalValues()), Vec3::Zero(), 10000, 2);

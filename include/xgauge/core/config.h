@@ -52,6 +52,8 @@ class ConfigNode {
   T as() const;
   double number() const;                           // finite double
   double number(double min, double max) const;     // finite, in [min, max]
+  // A whole number in [min, max] (2020 and 2020.0 alike; 2.5 is refused).
+  int64_t integer(int64_t min, int64_t max) const;
   std::string string() const;
 
   // Convenience for members of an object.

@@ -8,6 +8,7 @@
 
 #include <array>
 #include <cstdint>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -34,6 +35,7 @@ struct BoundingBox {
 // Signed enclosed volume in mm^3 by the divergence theorem: positive when the
 // triangles face outward. Meaningful for a closed mesh only.
 double signedVolume(const TriangleMesh& mesh);
+double signedVolume(std::span<const Vec3> vertices, std::span<const Triangle> triangles);
 
 // Box of all vertices (referenced by a triangle or not).
 BoundingBox boundingBox(const TriangleMesh& mesh);
@@ -47,7 +49,7 @@ struct MeshCheck {
     kNone,
     kEmpty,                    // no triangles
     kBadIndex,                 // a vertex index out of range
-    kDegenerateTriangle,       // repeated vertex index or zero area
+    kDegenerateTriangle,       // repeated vertex index
     kOpenEdge,                 // an edge used by one triangle only
     kNonManifoldEdge,          // an edge used by more than two triangles
     kInconsistentOrientation,  // two triangles run along their edge the same way
@@ -57,6 +59,9 @@ struct MeshCheck {
   Problem problem = Problem::kNone;
   std::string message;      // names the first problem; empty when ok()
   double volume_mm3 = 0.0;  // signed volume, set when the edges passed
+  // Triangles of (almost) zero area with three distinct vertices: accepted,
+  // since they add nothing to any path; counted for a note.
+  size_t zero_area_triangles = 0;
 
   bool ok() const { return problem == Problem::kNone; }
 };
@@ -70,6 +75,9 @@ inline constexpr double kZeroAreaTolerance = 1e-12;
 // undirected edge used by exactly two triangles in opposite directions
 // (closed, manifold, consistently oriented) and positive volume (outward).
 MeshCheck checkClosedMesh(const TriangleMesh& mesh);
+
+// An info message when the check accepted zero-area triangles.
+void noteZeroAreaTriangles(const MeshCheck& check, const std::string& source);
 
 // checkClosedMesh, throwing Error(message, where) on the first problem.
 void requireClosedMesh(const TriangleMesh& mesh, const SourceLocation& where);

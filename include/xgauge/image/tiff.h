@@ -41,9 +41,11 @@ namespace xgauge {
 Image readTiff(const std::filesystem::path& path, std::string* sha256 = nullptr);
 
 // The most memory one readTiff() may allocate for a file: the image as 32-bit
-// floats, or one strip or tile buffer. The default is what a 16384 x 16384
-// radiograph needs (1 GiB); the CLI sets it with --max-image-mb.
-inline constexpr uint64_t kDefaultTiffMemoryLimit = uint64_t{16384} * 16384 * sizeof(float);
+// floats plus one strip or tile buffer, held together while decoding. The
+// default is what a 16384 x 16384 radiograph needs with strips or tiles of up
+// to 64 MiB (1088 MiB); the CLI sets it with --max-image-mb.
+inline constexpr uint64_t kDefaultTiffMemoryLimit =
+    uint64_t{16384} * 16384 * sizeof(float) + (uint64_t{64} << 20);
 void setTiffMemoryLimit(uint64_t bytes);
 uint64_t tiffMemoryLimit();
 

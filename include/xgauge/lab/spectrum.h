@@ -46,7 +46,9 @@ struct Layer {
 
   // Keys compound, density_g_cm3, thickness_mm; validated, errors name the
   // key. Does not call finish().
-  static Layer fromConfig(const ConfigNode& node);
+  // `compound` (checked against xraylib, errors at the key), `density_g_cm3`
+  // and, unless `with_thickness` is false (a part's material), `thickness_mm`.
+  static Layer fromConfig(const ConfigNode& node, bool with_thickness = true);
   nlohmann::json toJson() const;
 };
 

@@ -55,6 +55,12 @@ void poseVertices(const Pose& pose, std::span<const Vec3> part_vertices,
 std::optional<std::string> outsideBeam(const Machine& machine,
                                        std::span<const Vec3> world_vertices_mm);
 
+// Why these world vertices (all inside the beam, see outsideBeam) cast no
+// shadow on the detector: the message gives the shadow's pixel extent;
+// nullopt when the shadow's bounding box overlaps the detector.
+std::optional<std::string> shadowMissesDetector(const Machine& machine,
+                                                std::span<const Vec3> world_vertices_mm);
+
 // Mean path length (mm) through the part over each pixel's samples.
 void renderPathLength(const Machine& machine, const WorldMesh& mesh,
                       const RenderOptions& options, ImageT<double>& out);

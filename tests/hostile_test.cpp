@@ -290,20 +290,12 @@ TEST_F(Hostile, MaterialThatDoesNotAttenuateIsRefused) {
 // Item 6: a part turning inside out at in-bounds values used to render as
 // an all-1.0 image.
 TEST_F(Hostile, PartTurnedInsideOutIsRefusedWithTheValues) {
-  std::string part = R"({"description": "box whose x half-size is s - 5",
-    "dimensions": [{"name": "s", "nominal": 8, "min": 1, "max": 10, "unit": "mm"}],
-    "derived": [{"name": "hx", "expr": "s - 5"}],
-    "shape": {"type": "mesh", "vertices": [)";
-  for (int i = 0; i < 8; ++i)
-    part += fmt::format(R"({}["{}hx", "{}", "{}"])", i ? ", " : "", i & 1 ? "" : "-",
-                        i & 2 ? 2 : -2, i & 4 ? 3 : -3);
-  part += R"(], "triangles": [[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4],
-      [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]]}})";
+  const std::string part = kRoot + "/tests/data/box_turning_inside_out.json";
   const std::string machine = write("machine.json", kTinyMachine);
-  const CommandResult r = run(renderArgs(write("flip.json", part), machine, "--set s=4 -q"));
+  const CommandResult r = run(renderArgs(part, machine, "--set s=4 -q"));
   expectFailure(r, {"the surface turns inside out", "at s=4 mm"});
   EXPECT_FALSE(fs::exists(out("out.tif")));
-  EXPECT_EQ(run(renderArgs(out("flip.json"), machine, "--set s=7 -q")).status, 0);
+  EXPECT_EQ(run(renderArgs(part, machine, "--set s=7 -q")).status, 0);
 }
 
 // Item 6: a part 5 m out of the beam used to simulate and render silently.

@@ -313,16 +313,8 @@ TEST(PartModel, RawMeshMustBeClosedAndOutward) {
 // The connectivity is checked at load; the orientation can break at other
 // values, and is checked wherever vertices are made (issue: hostile input).
 TEST(PartModel, TurningInsideOutInsideTheBoundsIsRefusedWithTheValues) {
-  std::string text = R"({"description": "box whose x half-size is s - 5",
-    "dimensions": [{"name": "s", "nominal": 8, "min": 1, "max": 10, "unit": "mm"}],
-    "derived": [{"name": "hx", "expr": "s - 5"}],
-    "shape": {"type": "mesh", "vertices": [)";
-  for (int i = 0; i < 8; ++i)
-    text += fmt::format(R"({}["{}hx", "{}", "{}"])", i ? ", " : "", i & 1 ? "" : "-",
-                        i & 2 ? 2 : -2, i & 4 ? 3 : -3);
-  text += R"(], "triangles": [[0, 2, 3], [0, 3, 1], [4, 5, 7], [4, 7, 6], [0, 1, 5], [0, 5, 4],
-      [2, 6, 7], [2, 7, 3], [0, 4, 6], [0, 6, 2], [1, 3, 7], [1, 7, 5]]}})";
-  const PartModel model = loadText(text);
+  const PartModel model =
+      PartModel::load(std::string(XGAUGE_SOURCE_DIR) + "/tests/data/box_turning_inside_out.json");
   std::vector<Vec3> vertices;
   EXPECT_FALSE(model.tryEvaluate(std::vector<double>{8.0}, vertices));
   const auto inverted = model.tryEvaluate(std::vector<double>{4.0}, vertices);

@@ -343,7 +343,8 @@ void setTiffMemoryLimit(uint64_t bytes) {
 
 uint64_t tiffMemoryLimit() { return memory_limit.load(); }
 
-Image readTiff(const std::filesystem::path& path, std::string* sha256) {
+Image readTiff(const std::filesystem::path& path, std::string* sha256,
+               const ExpectedImageSize* expected) {
   const SourceLocation where = SourceLocation::inFile(path.string());
   std::error_code ec;
   if (!std::filesystem::exists(path, ec))
@@ -377,6 +378,9 @@ Image readTiff(const std::filesystem::path& path, std::string* sha256) {
   if (width > uint32_t{std::numeric_limits<int>::max()} ||
       height > uint32_t{std::numeric_limits<int>::max()})
     failAt(where, "the file declares {}x{} pixels: too large", width, height);
+  if (expected && (width != uint32_t(expected->width) || height != uint32_t(expected->height)))
+    failAt(where, "is {}x{} pixels but {} is {}x{}", width, height, expected->what,
+           expected->width, expected->height);
   if (!TIFFLastDirectory(tif.get()))
     failAt(where,
            "the file holds more than one image (a multi-page TIFF); a radiograph file must hold "

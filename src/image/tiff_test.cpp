@@ -403,6 +403,23 @@ TEST(Tiff, CodecsWithoutAKnownBoundStillNeedTheBytes) {
   }
 }
 
+TEST(Tiff, ExpectedSizeIsCheckedBeforeDecoding) {
+  // A measurement knows its detector: another size is refused from the
+  // header alone (this file could not even be decoded).
+  TestFolder folder;
+  const auto path = folder / "big.tif";
+  testing::writeDeclaredStripTiff(path, 4096, 4096, 16, 1, 1, 56, 256);
+  const ExpectedImageSize detector{128, 96, "the machine's detector"};
+  try {
+    readTiff(path, nullptr, &detector);
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.message(), "is 4096x4096 pixels but the machine's detector is 128x96");
+  }
+  writeTiff(path, Image(128, 96, 0.5f), TiffFormat::kFloat32);
+  EXPECT_EQ(readTiff(path, nullptr, &detector).width(), 128);
+}
+
 TEST(Tiff, MemoryLimitIsConfigurable) {
   TestFolder folder;
   const auto path = folder / "ok.tif";

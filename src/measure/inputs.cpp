@@ -77,9 +77,11 @@ PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
   return out;
 }
 
-Image readInputTiff(const std::filesystem::path& path, std::map<std::string, std::string>& sha256) {
+Image readInputTiff(const std::filesystem::path& path, const Machine& machine,
+                    std::map<std::string, std::string>& sha256) {
   std::string digest;
-  Image image = readTiff(path, &digest);
+  const ExpectedImageSize detector{machine.columns, machine.rows, "the machine's detector"};
+  Image image = readTiff(path, &digest, &detector);
   sha256[path.string()] = digest;
   return image;
 }
@@ -90,7 +92,7 @@ std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
   std::map<std::filesystem::path, Image> frames;
   auto frame = [&](const std::filesystem::path& path) -> const Image& {
     auto it = frames.find(path);
-    if (it == frames.end()) it = frames.emplace(path, readInputTiff(path, sha256)).first;
+    if (it == frames.end()) it = frames.emplace(path, readInputTiff(path, machine, sha256)).first;
     return it->second;
   };
   std::vector<std::shared_ptr<const PreparedRadiograph>> out;
@@ -98,7 +100,7 @@ std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
     RadiographFrames given;
     if (!spec.dark.empty()) given = {&frame(spec.dark), &frame(spec.flat)};
     out.push_back(std::make_shared<const PreparedRadiograph>(
-        prepareRadiograph(readInputTiff(spec.image, sha256), given, spec, machine)));
+        prepareRadiograph(readInputTiff(spec.image, machine, sha256), given, spec, machine)));
   }
   return out;
 }

@@ -234,13 +234,13 @@ std::shared_ptr<const PreparedRadiograph> PreparedShots::get(const RadiographSpe
   if (it == prepared_.end()) {
     RadiographFrames frames;
     if (!spec.dark.empty()) {
-      if (!dark_) dark_ = readInputTiff(spec.dark, sha256_), flat_ = readInputTiff(spec.flat, sha256_);
+      if (!dark_) dark_ = readInputTiff(spec.dark, machine_, sha256_), flat_ = readInputTiff(spec.flat, machine_, sha256_);
       frames = {&*dark_, &*flat_};
     }
     it = prepared_
              .emplace(spec.image.string(),
                       std::make_shared<const PreparedRadiograph>(prepareRadiograph(
-                          readInputTiff(spec.image, sha256_), frames, spec, machine_)))
+                          readInputTiff(spec.image, machine_, sha256_), frames, spec, machine_)))
              .first;
   }
   return it->second;

@@ -38,7 +38,14 @@ namespace xgauge {
 // first such pixel "(x, y)" in row-major order).
 // With `sha256`, also the SHA-256 of the file's bytes (core/digest.h), read
 // through the same open file.
-Image readTiff(const std::filesystem::path& path, std::string* sha256 = nullptr);
+// With `expected`, a file declaring another size is refused before any
+// pixel is decoded ("is WxH pixels but <what> is CxR").
+struct ExpectedImageSize {
+  int width = 0, height = 0;
+  std::string what;  // e.g. "the machine's detector"
+};
+Image readTiff(const std::filesystem::path& path, std::string* sha256 = nullptr,
+               const ExpectedImageSize* expected = nullptr);
 
 // The most memory one readTiff() may allocate for a file: the image as 32-bit
 // floats plus one strip or tile buffer, held together while decoding. The

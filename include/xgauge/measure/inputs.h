@@ -58,7 +58,9 @@ MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
                                         bool needs_material);
 
 // Reads a TIFF once, recording its SHA-256 in `sha256` (keyed by path).
-Image readInputTiff(const std::filesystem::path& path, std::map<std::string, std::string>& sha256);
+// Refuses, before decoding, an image whose size is not the machine's.
+Image readInputTiff(const std::filesystem::path& path, const Machine& machine,
+                    std::map<std::string, std::string>& sha256);
 
 // Reads and prepares every radiograph of `job` from their files, each file
 // (dark and flat frames shared between radiographs too) read once.

@@ -384,11 +384,13 @@ TEST_F(Hostile, MessagesNameTheFileAndKey) {
 // no half-made output folder.
 TEST_F(Hostile, InterruptedCommandsLeaveNothingBehind) {
   write("machine.json", kTinyMachine);
-  const std::string recipe = write("many.json", tinyRecipe("[-15, 0, 500]", 100, 0.1));
-  const pid_t pid = spawnXgauge({"simulate", recipe, "-o", out("many"), "-q"}, out("sim.log"));
+  const std::string recipe = write("many.json", tinyRecipe("[-15, 0, 500]", 400, 0.01));
+  // 400 shots on one thread: seconds of work, interrupted after its first files.
+  const pid_t pid =
+      spawnXgauge({"simulate", recipe, "-o", out("many"), "-q", "-j", "1"}, out("sim.log"));
   for (int i = 0; i < 1000 && !fs::exists(out("many")); ++i)
     std::this_thread::sleep_for(std::chrono::milliseconds(5));
-  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
   ::kill(pid, SIGINT);
   int status = 0;
   ::waitpid(pid, &status, 0);
@@ -398,8 +400,9 @@ TEST_F(Hostile, InterruptedCommandsLeaveNothingBehind) {
   EXPECT_TRUE(temporaries(dir_).empty());
 
   simulateTinyLab();
-  const pid_t measure = spawnXgauge({"measure", tinyJob(), "-o", out("m")}, out("m.log"));
-  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  const pid_t measure =
+      spawnXgauge({"measure", tinyJob(), "-o", out("m"), "-j", "1"}, out("m.log"));
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
   ::kill(measure, SIGTERM);
   ::waitpid(measure, &status, 0);
   ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM)

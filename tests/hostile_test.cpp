@@ -283,7 +283,7 @@ TEST_F(Hostile, MaterialThatDoesNotAttenuateIsRefused) {
   write("material.json", R"({"model": "exponential_sum",
     "terms": [{"weight": 0.5, "mu_per_mm": 0}, {"weight": 0.5, "mu_per_mm": 0}]})");
   expectFailure(run("measure " + job + " -o " + out("out")),
-                {out("material.json") + ": /terms: every mu_per_mm is 0"});
+                {out("material.json") + ":2: /terms: every mu_per_mm is 0"});
   EXPECT_FALSE(fs::exists(out("out")));
 }
 
@@ -324,7 +324,7 @@ TEST_F(Hostile, SilentlyAcceptedInputIsRefused) {
   expectFailure(run("measure " + tinyJob("{" + start + "}", "[[-30, 30], [-20, 20], [480, 520]]",
                                          R"(, "seed": 2.5)") +
                     " -o " + out("o")),
-                {out("job.json") + ": /seed: expected a whole number, got 2.5"});
+                {out("job.json") + ":10: /seed: expected a whole number, got 2.5"});
   expectFailure(run("measure " + tinyJob(R"({"bounds": {"size_x": [5, 25]}})") + " -o " + out("o")),
                 {"/dimensions/bounds/size_x: bounds [5, 25] reach beyond the part model's [10, 30] mm"});
   expectFailure(
@@ -355,7 +355,7 @@ TEST_F(Hostile, MessagesNameTheFileAndKey) {
   simulateTinyLab();
   // A start outside the model's bounds, with no job bounds.
   expectFailure(run("measure " + tinyJob(R"({"start": {"size_x": 35}})") + " -o " + out("o")),
-                {out("job.json") + ": /dimensions/start/size_x: start 35 lies outside the bounds [10, 30]"});
+                {out("job.json") + ":3: /dimensions/start/size_x: start 35 lies outside the bounds [10, 30]"});
   // A constraint broken by the start values is the job's doing.
   const std::string part = readText(kRoot + "/parts/cuboid.json");
   const auto at = part.find("\"shape\"");
@@ -367,7 +367,7 @@ TEST_F(Hostile, MessagesNameTheFileAndKey) {
               out("constrained.json"));
   write("job.json", job);
   expectFailure(run("measure " + out("job.json") + " -o " + out("o")),
-                {out("job.json") + ": /dimensions: the start values", "y must exceed x"});
+                {out("job.json") + ":3: /dimensions: the start values", "y must exceed x"});
   // The white region of a radiograph in darkness.
   writeTiff(out("dark.tif"), Image(16, 16, 0.0f), TiffFormat::kFloat32);
   expectFailure(run("normalize " + out("dark.tif") + " --white 0 0 4 4 -o " + out("n.tif")),
@@ -376,7 +376,7 @@ TEST_F(Hostile, MessagesNameTheFileAndKey) {
   std::string recipe = tinyRecipe();
   recipe.replace(recipe.find(R"("compound": "Al", "density_g_cm3": 2.699})"), 16, R"("compound": "Qq")");
   expectFailure(run("simulate " + write("bad_recipe.json", recipe) + " -o " + out("ds2") + " -q"),
-                {out("bad_recipe.json") + ": /material/compound"});
+                {out("bad_recipe.json") + ":5: /material/compound"});
   EXPECT_FALSE(fs::exists(out("ds2")));
 }
 
@@ -396,8 +396,8 @@ TEST_F(Hostile, InterruptedCommandsLeaveNothingBehind) {
   ::waitpid(pid, &status, 0);
   ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGINT)
       << "simulate ended before the interrupt: " << readText(out("sim.log"));
-  EXPECT_FALSE(fs::exists(out("many")));
-  EXPECT_TRUE(temporaries(dir_).empty());
+  EXPECT_FALSE(fs::exists(out("many"))) << readText(out("sim.log"));
+  EXPECT_EQ(temporaries(dir_), std::vector<std::string>{});
 
   simulateTinyLab();
   const pid_t measure =
@@ -407,8 +407,8 @@ TEST_F(Hostile, InterruptedCommandsLeaveNothingBehind) {
   ::waitpid(measure, &status, 0);
   ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGTERM)
       << "measure ended before the interrupt: " << readText(out("m.log"));
-  EXPECT_FALSE(fs::exists(out("m")));
-  EXPECT_TRUE(temporaries(dir_).empty());
+  EXPECT_FALSE(fs::exists(out("m"))) << readText(out("m.log"));
+  EXPECT_EQ(temporaries(dir_), std::vector<std::string>{});
 }
 
 }  // namespace

@@ -20,6 +20,23 @@ struct ConfigNode::Document {
   std::set<std::string> entered;  // pointers of objects whose keys were looked up
   std::set<std::string> whole;    // pointers read as a whole subtree
   std::map<std::string, std::set<std::string>> asked;  // keys looked up per object, present or not
+  // Line of every object member and of every object or array, by JSON
+  // pointer (parsed text only); a scalar in an array takes its array's.
+  std::map<std::string, int> lines;
+
+  SourceLocation locate(const std::string& pointer) const {
+    SourceLocation where = SourceLocation::at(origin, pointer.empty() ? "/" : pointer);
+    for (std::string p = pointer;;) {
+      if (const auto it = lines.find(p); it != lines.end()) {
+        where.line = it->second;
+        break;
+      }
+      if (p.empty()) break;
+      const size_t slash = p.rfind('/');
+      p.resize(slash == std::string::npos ? 0 : slash);
+    }
+    return where;
+  }
 };
 
 namespace {
@@ -138,8 +155,9 @@ class TrackedIterator {
 // line and column.
 class DocumentBuilder final : public nlohmann::json_sax<nlohmann::json> {
  public:
-  DocumentBuilder(std::string_view text, const std::string& origin, const char** cursor)
-      : text_(text), origin_(origin), cursor_(cursor) {}
+  DocumentBuilder(std::string_view text, const std::string& origin, const char** cursor,
+                  std::map<std::string, int>& lines)
+      : text_(text), origin_(origin), cursor_(cursor), lines_(lines) {}
 
   nlohmann::json& root() { return root_; }
   // The refusal that stopped the parse, if any.
@@ -160,6 +178,7 @@ class DocumentBuilder final : public nlohmann::json_sax<nlohmann::json> {
     if (open_.back()->contains(key))
       return refuse(fmt::format("key '{}' appears twice in the object at {}", key,
                                 paths_.back().empty() ? "/" : paths_.back()));
+    lines_.emplace(paths_.back() + "/" + escapeKey(key), line());
     key_ = std::move(key);
     return true;
   }
@@ -209,6 +228,7 @@ class DocumentBuilder final : public nlohmann::json_sax<nlohmann::json> {
       path = paths_.back() + "/" +
              (open_.back()->is_array() ? std::to_string(open_.back()->size()) : escapeKey(key_));
     open_.push_back(place(std::move(container)));
+    lines_.emplace(path, line());
     paths_.push_back(std::move(path));
     return true;
   }
@@ -216,6 +236,14 @@ class DocumentBuilder final : public nlohmann::json_sax<nlohmann::json> {
     open_.pop_back();
     paths_.pop_back();
     return true;
+  }
+  // The line of the parser's position; the cursor only moves forward, so
+  // the newlines are counted once.
+  int line() {
+    const size_t offset = static_cast<size_t>(*cursor_ - text_.data());
+    for (; counted_ < offset && counted_ < text_.size(); ++counted_)
+      if (text_[counted_] == '\n') ++line_;
+    return line_;
   }
   bool refuse(const std::string& message) {
     const size_t offset = static_cast<size_t>(*cursor_ - text_.data());
@@ -228,6 +256,9 @@ class DocumentBuilder final : public nlohmann::json_sax<nlohmann::json> {
   const char** cursor_;
   nlohmann::json root_;
   std::vector<nlohmann::json*> open_;
+  std::map<std::string, int>& lines_;
+  size_t counted_ = 0;  // text_[0, counted_) scanned for newlines
+  int line_ = 1;
   std::vector<std::string> paths_;  // JSON pointer of each open container
   std::string key_;
   std::optional<Error> error_;
@@ -237,7 +268,8 @@ class DocumentBuilder final : public nlohmann::json_sax<nlohmann::json> {
 
 ConfigNode ConfigNode::parse(std::string_view text, const std::string& origin) {
   const char* cursor = text.data();
-  DocumentBuilder builder(text, origin, &cursor);
+  std::map<std::string, int> lines;
+  DocumentBuilder builder(text, origin, &cursor, lines);
   const bool parsed = nlohmann::json::sax_parse(
       TrackedIterator(text.data(), &cursor), TrackedIterator(text.data() + text.size(), &cursor),
       &builder, nlohmann::json::input_format_t::json, /*strict=*/true, /*ignore_comments=*/true);
@@ -245,7 +277,9 @@ ConfigNode ConfigNode::parse(std::string_view text, const std::string& origin) {
     if (builder.error()) throw *builder.error();
     throw Error("malformed JSON", SourceLocation::inFile(origin));
   }
-  return fromJson(std::move(builder.root()), origin);
+  ConfigNode node = fromJson(std::move(builder.root()), origin);
+  node.doc_->lines = std::move(lines);
+  return node;
 }
 
 ConfigNode ConfigNode::loadFile(const std::filesystem::path& path) {
@@ -261,7 +295,7 @@ const std::string& ConfigNode::file() const { return doc_->origin; }
 const std::string& ConfigNode::sha256() const { return doc_->sha256; }
 
 SourceLocation ConfigNode::where() const {
-  return SourceLocation::at(doc_->origin, path_.empty() ? "/" : path_);
+  return doc_->locate(path_);
 }
 
 void ConfigNode::fail(const std::string& message) const { throw Error(message, where()); }
@@ -360,7 +394,7 @@ void ConfigNode::finish() const {
         if (d < best) best = d, hint = fmt::format("; did you mean '{}'?", k);
       }
       throw Error(fmt::format("unknown key '{}'{}", item.key(), hint),
-                  SourceLocation::at(doc_->origin, child));
+                  doc_->locate(child));
     }
   } else if (json_->is_array()) {
     for (size_t i = 0; i < json_->size(); ++i) {

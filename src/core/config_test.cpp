@@ -49,7 +49,7 @@ TEST(Config, MissingKeyNamesKeyAndFile) {
     root.at("a").at("pitch_mm");
     FAIL();
   } catch (const Error& e) {
-    EXPECT_EQ(std::string(e.what()), "m.json: /a: missing key 'pitch_mm'");
+    EXPECT_EQ(std::string(e.what()), "m.json:1: /a: missing key 'pitch_mm'");
   }
 }
 
@@ -112,6 +112,28 @@ TEST(Config, DuplicateKeyIsRefused) {
       << e.what();
   // The same key in two objects is fine.
   EXPECT_NO_THROW(ConfigNode::parse(R"([{"a": 1}, {"a": 2}])", "ok.json"));
+}
+
+TEST(Config, ErrorsGiveTheLineOfTheKey) {
+  const auto root = ConfigNode::parse("{\n  \"a\": {\n    \"b\": [1,\n      {\"c\": \"x\"}],\n    \"d\": 2\n  }\n}", "l.json");
+  const auto line = [&](auto read) {
+    try {
+      read();
+    } catch (const Error& e) {
+      return e.where().line;
+    }
+    return -1;
+  };
+  EXPECT_EQ(line([&] { root.at("a").at("d").string(); }), 5);
+  EXPECT_EQ(line([&] { root.at("a").at("b")[1].at("c").number(); }), 4);
+  EXPECT_EQ(line([&] { root.at("a").at("b")[0].string(); }), 3);  // a scalar: its array's line
+  EXPECT_EQ(line([&] { root.at("a").at("missing"); }), 2);
+  root.at("a").at("d");
+  root.at("a").at("b")[1].at("c");
+  EXPECT_EQ(line([&] { root.finish(); }), -1);
+  const auto unread = ConfigNode::parse("{\"a\": 1,\n\"bb\": 2}", "u.json");
+  unread.get<double>("a");
+  EXPECT_EQ(line([&] { unread.finish(); }), 2);
 }
 
 TEST(Config, WrongTypeMessageStaysShort) {

@@ -202,11 +202,11 @@ void installInterruptCleanup() {
     std::thread([signals] {
       int caught = 0;
       if (sigwait(&signals, &caught) != 0) return;
-      {
-        Registry& r = registry();
-        const std::lock_guard lock(r.mutex);
-        undoLocked(r);
-      }
+      // The lock is kept to the end: no thread registers a new file after
+      // the cleanup.
+      Registry& r = registry();
+      const std::lock_guard lock(r.mutex);
+      undoLocked(r);
       // Die of the signal, as the shell expects.
       std::signal(caught, SIG_DFL);
       sigset_t only;

@@ -2,11 +2,13 @@
 #include "xgauge/xray/renderer.h"
 
 #include "xgauge/core/parallel.h"
+#include "xgauge/geometry/mesh.h"
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/material/exponential_sum.h"
 
 #include <gtest/gtest.h>
 
+#include <numbers>
 #include <random>
 
 namespace xgauge {
@@ -288,6 +290,52 @@ TEST(Renderer, ZeroAreaSliverKeepsTheSurfaceWatertight) {
       for (int u = 0; u < m.columns; ++u)
         ASSERT_NEAR(with(u, v), without(u, v), 1e-9) << "pose " << trial << " pixel " << u << ", " << v;
   }
+}
+
+// A cylinder as CAD exports it: caps triangulated as strips, whose first
+// and last triangles become slivers of (almost) zero area as the segments
+// grow; 50,000 segments, 200,000 triangles.
+TriangleMesh stripCylinder(uint32_t n, double radius, double height) {
+  TriangleMesh mesh;
+  for (int ring = 0; ring < 2; ++ring)
+    for (uint32_t i = 0; i < n; ++i) {
+      const double angle = 2.0 * std::numbers::pi * i / n;
+      mesh.vertices.emplace_back(radius * std::cos(angle), radius * std::sin(angle),
+                                 ring ? 0.5 * height : -0.5 * height);
+    }
+  for (uint32_t i = 0; i < n; ++i) {  // sides, outward
+    const uint32_t j = (i + 1) % n;
+    mesh.triangles.push_back({i, j, n + j});
+    mesh.triangles.push_back({i, n + j, n + i});
+  }
+  // Each cap: the strip 0, 1, n-1, 2, n-2, ... with alternating winding.
+  std::vector<uint32_t> strip = {0};
+  for (uint32_t k = 1; strip.size() < n; ++k) {
+    strip.push_back(k);
+    if (strip.size() < n) strip.push_back(n - k);
+  }
+  for (int top = 0; top < 2; ++top)
+    for (size_t k = 0; k + 2 < strip.size(); ++k) {
+      Triangle t = {strip[k], strip[k + 1], strip[k + 2]};
+      if (k % 2 == 1) std::swap(t[0], t[1]);
+      if (top) {
+        for (uint32_t& v : t) v += n;
+      } else {
+        std::swap(t[1], t[2]);  // the bottom faces -z
+      }
+      mesh.triangles.push_back(t);
+    }
+  return mesh;
+}
+
+TEST(Renderer, StripTriangulatedCylinderWithSliversIsWatertight) {
+  const TriangleMesh mesh = stripCylinder(50000, 10.0, 20.0);
+  const MeshCheck check = checkClosedMesh(mesh);
+  ASSERT_TRUE(check.ok()) << check.message;
+  EXPECT_GT(check.zero_area_triangles, 0u);
+  std::printf("%zu of %zu triangles have zero area\n", check.zero_area_triangles, mesh.triangles.size());
+  EXPECT_NEAR(check.volume_mm3, std::numbers::pi * 100.0 * 20.0, 0.01);
+  checkWatertight(mesh, Vec3::Zero(), 15, 5);
 }
 
 TEST(Renderer, WatertightCylinder10000Poses) {

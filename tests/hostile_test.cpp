@@ -161,6 +161,13 @@ TEST_F(Hostile, HostileTiffsAreRefusedInLittleMemory) {
                   {out(name) + ": the file declares 32768x32768 pixels"});
   expectFailure(run("normalize " + out("tile.tif") + " --white 0 0 4 4 -o " + out("n.tif")),
                 {out("tile.tif") + ": the file declares tiles of 17448304896 bytes"});
+  // The limit is the user's to set.
+  writeTiff(out("fine.tif"), Image(600, 600, 100.0f), TiffFormat::kFloat32);
+  expectFailure(run("--max-image-mb 1 normalize " + out("fine.tif") + " --white 0 0 4 4 -o " + out("n.tif")),
+                {out("fine.tif") + ": the file declares 600x600 pixels, 1.4 MiB as floats: more than the "
+                                   "limit of 1.0 MiB"});
+  EXPECT_EQ(run("normalize " + out("fine.tif") + " --white 0 0 4 4 -o " + out("n.tif") + " -q").status, 0);
+  fs::remove(out("n.tif"));
   rusage usage{};
   ASSERT_EQ(getrusage(RUSAGE_CHILDREN, &usage), 0);
   EXPECT_LT(usage.ru_maxrss, 100 * 1024) << "peak resident memory of a child, KiB";

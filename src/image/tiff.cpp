@@ -173,7 +173,8 @@ std::string describePhotometric(uint16_t photometric) {
 std::atomic<uint64_t> memory_limit{kDefaultTiffMemoryLimit};
 
 std::string mebibytes(uint64_t bytes) {
-  return fmt::format("{:.0f} MiB", static_cast<double>(bytes) / (1024.0 * 1024.0));
+  const double mib = static_cast<double>(bytes) / (1024.0 * 1024.0);
+  return mib < 10.0 ? fmt::format("{:.1f} MiB", mib) : fmt::format("{:.0f} MiB", mib);
 }
 
 // How many bytes of decoded pixels one byte of compressed data can give at

@@ -21,7 +21,6 @@
 #include <thread>
 #include <vector>
 
-extern char** environ;
 
 namespace xgauge {
 namespace {

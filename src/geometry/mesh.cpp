@@ -13,7 +13,7 @@ double signedVolume(std::span<const Vec3> vertices, std::span<const Triangle> tr
   if (vertices.empty()) return 0.0;
   // Sum of signed tetrahedra (origin, a, b, c) / 6. Taking the origin at a
   // vertex keeps the terms small for parts far from the part origin.
-  const Vec3 origin = vertices.front();
+  const Vec3& origin = vertices.front();
   double six_volume = 0.0;
   for (const Triangle& t : triangles) {
     const Vec3 a = vertices[t[0]] - origin;

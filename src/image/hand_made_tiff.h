@@ -18,7 +18,7 @@ struct TiffEntry {
 
 // One directory right after the header, no next directory; the file is
 // padded with zeros to `file_bytes`.
-inline void writeHandMadeTiff(const std::filesystem::path& path, std::vector<TiffEntry> entries,
+inline void writeHandMadeTiff(const std::filesystem::path& path, const std::vector<TiffEntry>& entries,
                               size_t file_bytes) {
   std::vector<unsigned char> bytes = {'I', 'I', 42, 0, 8, 0, 0, 0};
   const auto u16 = [&](unsigned v) {

@@ -47,7 +47,7 @@ class FileDigests {
       hash.update(buffer.data(), static_cast<size_t>(in.gcount()));
     }
     if (in.bad()) throw Error("cannot read file", SourceLocation::inFile(path.string()));
-    const std::string digest = hash.hex();
+    std::string digest = hash.hex();
     const std::lock_guard lock(mutex_);
     known_.emplace(path.string(), digest);
     return digest;

@@ -98,7 +98,7 @@ void runRender(const RenderArguments& args) {
   // Render.
   std::vector<Vec3> world;
   poseVertices(pose, mesh.vertices, world);
-  const WorldMesh posed{world, mesh.triangles};
+  const WorldMesh posed{world, mesh.triangles, mesh.csg.get()};
   if (auto why = outsideBeam(machine, world)) fail("{}: check the pose", *why);
   if (auto why = shadowMissesDetector(machine, world))
     fail("{}: check the pose (the part must be in the beam)", *why);

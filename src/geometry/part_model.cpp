@@ -1,7 +1,7 @@
 #include "xgauge/geometry/part_model.h"
 
 #include "expression.h"
-#include "shape.h"
+#include "solid.h"
 
 #include "xgauge/core/config.h"
 #include "xgauge/geometry/mesh.h"
@@ -30,9 +30,8 @@ struct PartModel::Definition {
   Symbols symbols;
   std::vector<ExpressionSource> derived;  // derived k sees dimensions and derived < k
   std::vector<Constraint> constraints;
-  std::vector<ExpressionSource> scalars;  // the shape's, see ShapeSpec
-  SourceLocation shape_where;
-  std::unique_ptr<const Shape> shape;
+  std::vector<ExpressionSource> scalars;  // the solid's, see SolidSpec
+  std::unique_ptr<const Solid> shape;
 
   // "width=20.977 mm, thickness=13.02 mm" for error messages.
   std::string describe(std::span<const double> values) const {
@@ -156,10 +155,9 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
   d.description = root.get<std::string>("description");
 
   // The shape first: an STL shape takes no dimensions.
-  const ShapeSpec spec = readShapeSpec(root.at("shape"), path.parent_path());
-  d.shape_where = spec.where;
+  const SolidSpec spec = readSolidSpec(root.at("shape"), path.parent_path());
   d.scalars = spec.scalars;
-  if (spec.type == ShapeType::kStl) {
+  if (spec.is_stl) {
     for (const char* key : {"dimensions", "constants", "derived", "constraints"})
       if (const auto node = root.find(key))
         node->fail(
@@ -220,7 +218,7 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
   if (const ExpressionSource* bad = evaluator->compute(d, nominal))
     throw Error(fmt::format("expression '{}' is not finite at nominal values", bad->text),
                 bad->where);
-  d.shape = buildShape(spec, evaluator->scalars());
+  d.shape = std::make_unique<const Solid>(spec, evaluator->scalars());
 
   PartModel model(std::move(definition), std::move(evaluator));
   try {
@@ -235,12 +233,16 @@ PartModel PartModel::fromStl(const std::filesystem::path& path) {
   auto definition = std::make_shared<Definition>();
   definition->name = path.stem().string();
   definition->description = fmt::format("fixed mesh read from {}", path.string());
-  ShapeSpec spec;
-  spec.type = ShapeType::kStl;
+  SolidSpec spec;
   spec.where = SourceLocation::inFile(path.string());
-  spec.stl = readStl(path);
-  definition->shape_where = spec.where;
-  definition->shape = buildShape(spec, {});
+  spec.is_stl = true;
+  SolidSpec::Piece piece;
+  piece.shape.type = ShapeType::kStl;
+  piece.shape.where = spec.where;
+  piece.shape.stl = readStl(path);
+  spec.pieces.push_back(std::move(piece));
+  spec.program.push_back({Csg::Op::kPiece, 0});
+  definition->shape = std::make_unique<const Solid>(spec, std::span<const double>{});
   auto evaluator = std::make_unique<Evaluator>(*definition);
   return PartModel(std::move(definition), std::move(evaluator));
 }
@@ -252,6 +254,7 @@ const std::vector<Triangle>& PartModel::triangles() const {
   return definition_->shape->triangles();
 }
 size_t PartModel::vertexCount() const { return definition_->shape->vertexCount(); }
+const std::shared_ptr<const Csg>& PartModel::csg() const { return definition_->shape->csg(); }
 
 std::vector<double> PartModel::nominalValues() const { return nominalOf(definition_->dimensions); }
 
@@ -286,21 +289,6 @@ std::vector<double> PartModel::values(const std::map<std::string, double>& overr
 }
 
 namespace {
-
-// Why a closed surface with these vertex positions is not a solid: negative
-// or (almost) zero signed volume; nullopt when it is one. Linear in the
-// triangle count, so cheap beside any render.
-std::optional<std::string> turnedInsideOut(std::span<const Vec3> vertices,
-                                           std::span<const Triangle> triangles) {
-  if (vertices.empty()) return std::nullopt;
-  Vec3 lo = vertices.front(), hi = lo;
-  for (const Vec3& v : vertices) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
-  const double diagonal = (hi - lo).norm();
-  const double volume = signedVolume(vertices, triangles);
-  if (volume > kZeroAreaTolerance * diagonal * diagonal * diagonal) return std::nullopt;
-  return volume < 0 ? fmt::format("the surface turns inside out (signed volume {:.6g} mm^3)", volume)
-                    : fmt::format("the surface encloses no volume ({:.6g} mm^3)", volume);
-}
 
 }  // namespace
 
@@ -362,13 +350,9 @@ std::optional<PartModel::Invalidity> PartModel::findFold(std::span<const double>
         bad->where};
   out.resize(d.shape->vertexCount());
   d.shape->place(evaluator_->scalars(), out);
-  if (const std::string_view fold = d.shape->fold(evaluator_->scalars()); !fold.empty())
-      [[unlikely]]
-    return Invalidity{fmt::format("{} at {}", fold, d.describe(values)), d.shape_where};
-  // The connectivity is fixed and was checked at load; what values can break
-  // is the orientation: a surface turned inside out, or flattened.
-  if (const auto why = turnedInsideOut(out, d.shape->triangles())) [[unlikely]]
-    return Invalidity{fmt::format("{} at {}", *why, d.describe(values)), d.shape_where};
+  if (auto problem = d.shape->problem(evaluator_->scalars(), out)) [[unlikely]]
+    return Invalidity{fmt::format("{} at {}", problem->message, d.describe(values)),
+                      problem->where};
   return std::nullopt;
 }
 
@@ -389,6 +373,7 @@ TriangleMesh PartModel::mesh(std::span<const double> values) const {
   TriangleMesh mesh;
   evaluate(values, mesh.vertices);
   mesh.triangles = triangles();
+  mesh.csg = csg();
   return mesh;
 }
 

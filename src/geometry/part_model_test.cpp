@@ -252,7 +252,7 @@ TEST(PartModel, BadDeclarations) {
   expectLoadError(replaced(kNotchedBar, R"({"name": "L")", R"({"name": "sin")"),
                   "'sin' is the name of a built-in function or constant", "/constants/0/name");
   expectLoadError(replaced(kNotchedBar, R"("type": "extrusion")", R"("type": "sweep")"),
-                  "unknown shape type 'sweep' (known: extrusion, revolution, mesh, stl)",
+                  "unknown shape type 'sweep' (known: union, difference, intersection, extrusion, revolution, box, cylinder, mesh, stl)",
                   "/shape/type");
   expectLoadError(replaced(kNotchedBar, R"("axis": "y")", R"("axis": "x")"),
                   "the extrusion axis must be the one not in the plane, 'y'", "/shape/axis");

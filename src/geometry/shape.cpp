@@ -3,6 +3,7 @@
 #include "xgauge/geometry/polygon.h"
 #include "xgauge/geometry/stl.h"
 
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 
@@ -13,6 +14,9 @@ constexpr std::array<const char*, 3> kAxisNames = {"x", "y", "z"};
 // More triangles than any part a fit can use (and than 32-bit indices reach
 // comfortably); shapes beyond it are refused before anything is built.
 constexpr uint64_t kMaxShapeTriangles = uint64_t{1} << 24;
+// Curved surfaces are faceted with at most this chord error at nominal size
+// unless the file gives "segments" (docs/formats.md).
+constexpr double kChordErrorMm = 0.001;
 
 SourceLocation child(SourceLocation where, std::string_view key) {
   where.key_path += "/";
@@ -35,6 +39,33 @@ void readPoints(const ConfigNode& list, size_t dimension, std::vector<Expression
       point.fail(fmt::format("expected a list of {} expressions", dimension));
     for (size_t k = 0; k < dimension; ++k) out.push_back(readExpression(point[k]));
   }
+}
+
+// "segments" of a revolution or cylinder: optional, 0 (chosen from the
+// nominal radius) when absent.
+void readSegments(const ConfigNode& shape, ShapeSpec& spec) {
+  const auto segments = shape.find("segments");
+  if (!segments) return;
+  spec.segments = static_cast<int>(segments->integer(3, 1000000));
+  // Two triangles per profile edge and segment; refused before any is made.
+  const uint64_t triangles =
+      uint64_t{2} * (spec.scalars.size() / 2) * static_cast<uint64_t>(spec.segments);
+  if (triangles > kMaxShapeTriangles)
+    segments->fail(fmt::format("{} profile points x {} segments make {} triangles; at most {} are "
+                               "supported",
+                               spec.scalars.size() / 2, spec.segments, triangles,
+                               kMaxShapeTriangles));
+}
+
+// A list of exactly three expressions (a point or a size).
+std::array<ExpressionSource, 3> readTriple(const ConfigNode& node) {
+  if (!node.isArray() || node.size() != 3) node.fail("expected a list of 3 expressions");
+  return {readExpression(node[0]), readExpression(node[1]), readExpression(node[2])};
+}
+
+// An expression made from others, reported where `where` was written.
+ExpressionSource derivedExpression(std::string text, const SourceLocation& where) {
+  return {std::move(text), where};
 }
 
 uint32_t readIndex(const ConfigNode& node, size_t vertex_count) {
@@ -149,6 +180,11 @@ class RevolvedShape final : public Shape {
  public:
   RevolvedShape(const ShapeSpec& spec, std::span<const double> nominal)
       : axes_(spec.axes), points_(spec.scalars.size() / 2), segments_(spec.segments) {
+    if (segments_ == 0) {
+      double radius = 0.0;
+      for (size_t i = 0; i < points_; ++i) radius = std::max(radius, nominal[2 * i]);
+      segments_ = segmentsForChordError(radius, kChordErrorMm);
+    }
     const SourceLocation profile_where = child(spec.where, "profile");
     if (points_ < 3)
       throw Error(
@@ -306,14 +342,30 @@ ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& di
     const int c = readAxis(shape.at("axis"));
     spec.axes = {(c + 1) % 3, (c + 2) % 3, c};
     readPoints(shape.at("profile"), 2, spec.scalars);
-    const ConfigNode segments = shape.at("segments");
-    spec.segments = static_cast<int>(segments.integer(3, 1000000));
-    // Two triangles per profile edge and segment; refused before any is made.
-    const uint64_t triangles = uint64_t{2} * (spec.scalars.size() / 2) * static_cast<uint64_t>(spec.segments);
-    if (triangles > kMaxShapeTriangles)
-      segments.fail(fmt::format("{} profile points x {} segments make {} triangles; at most {} are "
-                                "supported",
-                                spec.scalars.size() / 2, spec.segments, triangles, kMaxShapeTriangles));
+    readSegments(shape, spec);
+  } else if (type == "box") {
+    // An extrusion of the (x, y) rectangle along z.
+    spec.type = ShapeType::kExtrusion;
+    spec.axes = {0, 1, 2};
+    const auto lo = readTriple(shape.at("min"));
+    const auto hi = readTriple(shape.at("max"));
+    for (const auto* corner : {&lo[0], &lo[1], &hi[0], &lo[1], &hi[0], &hi[1], &lo[0], &hi[1]})
+      spec.scalars.push_back(*corner);
+    spec.scalars.push_back(lo[2]);
+    spec.scalars.push_back(hi[2]);
+  } else if (type == "cylinder") {
+    // A revolution of the rectangle (0 .. d/2) x (from .. to) about its axis.
+    spec.type = ShapeType::kRevolution;
+    const int c = readAxis(shape.at("axis"));
+    spec.axes = {(c + 1) % 3, (c + 2) % 3, c};
+    const ExpressionSource diameter = readExpression(shape.at("diameter"));
+    const ExpressionSource from = readExpression(shape.at("from"));
+    const ExpressionSource to = readExpression(shape.at("to"));
+    const ExpressionSource zero = derivedExpression("0", diameter.where);
+    const ExpressionSource radius = derivedExpression("(" + diameter.text + ") / 2", diameter.where);
+    for (const auto* s : {&zero, &from, &radius, &from, &radius, &to, &zero, &to})
+      spec.scalars.push_back(*s);
+    readSegments(shape, spec);
   } else if (type == "mesh") {
     spec.type = ShapeType::kMesh;
     readPoints(shape.at("vertices"), 3, spec.scalars);
@@ -333,9 +385,17 @@ ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& di
     spec.stl = readStl(file.is_absolute() ? file : directory / file);
   } else {
     type_node.fail(
-        fmt::format("unknown shape type '{}' (known: extrusion, revolution, mesh, stl)", type));
+        fmt::format("unknown shape type '{}' (known: union, difference, intersection, extrusion, "
+                    "revolution, box, cylinder, mesh, stl)",
+                    type));
   }
   return spec;
+}
+
+int segmentsForChordError(double radius_mm, double chord_error_mm) {
+  if (!(radius_mm > chord_error_mm)) return 8;
+  const double n = std::numbers::pi / std::acos(1.0 - chord_error_mm / radius_mm);
+  return static_cast<int>(std::clamp(std::ceil(n), 8.0, 1.0e6));
 }
 
 std::unique_ptr<const Shape> buildShape(const ShapeSpec& spec,

@@ -32,13 +32,20 @@ struct ShapeSpec {
   // extrusion: the profile's two axes, then the extrusion axis;
   // revolution: (u, v, axis), right-handed, angle measured from u towards v.
   std::array<int, 3> axes{0, 1, 2};
-  int segments = 0;                 // revolution
+  int segments = 0;                 // revolution; 0: enough for a 0.001 mm chord error
   std::vector<Triangle> triangles;  // mesh
   TriangleMesh stl;                 // stl
 };
 
-// Reads the "shape" object; relative STL paths are taken from `directory`.
+// Reads one primitive solid: "extrusion" (without holes), "revolution",
+// "box", "cylinder", "mesh" or "stl" (boxes become extrusions, cylinders
+// revolutions). Relative STL paths are taken from `directory`. Placement keys
+// and holes are read by the solid (solid.h).
 ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& directory);
+
+// Segments that keep an inscribed polygon of this radius (mm) within
+// `chord_error_mm` of its circle (the sagitta r (1 - cos(pi / N))), at least 8.
+int segmentsForChordError(double radius_mm, double chord_error_mm);
 
 // A shape with its topology fixed. Vertex count and order never change.
 class Shape {

@@ -77,7 +77,8 @@ Image renderShot(const Machine& machine, const TriangleMesh& mesh, const Pose& p
     Pose moved = pose;
     moved.translation_mm -= Vec3(sx, sy, 0.0);
     poseVertices(moved, mesh.vertices, world);
-    renderIntensity(shifted, {world, mesh.triangles}, table, options, k == 0 ? sum : one);
+    renderIntensity(shifted, {world, mesh.triangles, mesh.csg.get()}, table, options,
+                    k == 0 ? sum : one);
     if (k > 0) {
       auto s = sum.pixels();
       auto o = one.pixels();

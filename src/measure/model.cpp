@@ -277,7 +277,9 @@ std::optional<std::string> ForwardModel::tryPose(std::span<const double> theta, 
   return std::nullopt;
 }
 
-WorldMesh ForwardModel::worldMesh() const { return WorldMesh{world_vertices_, part_.triangles()}; }
+WorldMesh ForwardModel::worldMesh() const {
+  return WorldMesh{world_vertices_, part_.triangles(), part_.csg().get()};
+}
 
 WorldMesh ForwardModel::posedMesh(std::span<const double> theta, int radiograph) {
   if (auto why = tryPose(theta, radiograph)) fail("cannot simulate these parameters: {}", *why);

@@ -58,6 +58,7 @@ struct TriangleSetup {
   // Magnification m(q) = m0 + gx (qx - x[0]) + gy (qy - y[0]), clamped to [m_lo, m_hi].
   double m0, gx, gy, m_lo, m_hi;
   int sigma;               // +1: the ray leaves the part here; -1: enters
+  uint8_t piece = 0;       // the CSG piece the triangle belongs to (see csg_paths.h)
   int kx0, kx1, ky0, ky1;  // candidate samples (inclusive), clipped to the region
   bool by_rows;            // scan rows (else columns)
   EdgeCrossing edges[3];   // edge i runs from vertex i to vertex i + 1
@@ -187,6 +188,29 @@ void forEachSpan(const TriangleSetup& t, int row_begin, int row_end, Emit&& emit
       if (k_lo <= k_hi) emit(line, k_lo, k_hi);
     }
   }
+}
+
+}  // namespace xgauge::raster
+
+namespace xgauge::raster {
+
+// Calls visit(sample_row, sample_column) for every sample of `t` in sample
+// rows [row_begin, row_end), in scan order.
+template <typename Visit>
+void forEachSample(const TriangleSetup& t, int row_begin, int row_end, Visit&& visit) {
+  forEachSpan(t, row_begin, row_end, [&](int line, int k0, int k1) {
+    if (t.by_rows)
+      for (int k = k0; k <= k1; ++k) visit(line, k);
+    else
+      for (int k = k0; k <= k1; ++k) visit(k, line);
+  });
+}
+
+// 1 / m at sample (row, column): the depth of the triangle's plane along the
+// sample's ray, as a fraction of the source-detector ray. Bit for bit what
+// the renderer's sums use.
+inline double inverseMagnification(const TriangleSetup& t, int row, int column) {
+  return 1.0 / t.magnification(t.gx * ((column + 0.5) - t.x[0]), t.gy * ((row + 0.5) - t.y[0]));
 }
 
 }  // namespace xgauge::raster

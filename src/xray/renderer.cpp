@@ -1,5 +1,6 @@
 #include "xgauge/xray/renderer.h"
 
+#include "csg_paths.h"
 #include "rasterizer.h"
 
 #include <algorithm>
@@ -112,6 +113,26 @@ void accumulateTriangle(const TriangleSetup& t, const Band& band, const Footprin
   });
 }
 
+// Each sample's path / |P - S| over one band into `sum` (resized, zeroed).
+void bandSums(const SceneSetup& scene, const WorldMesh& mesh, const Band& band, const Footprint& f,
+              size_t b, std::vector<double>& sum, raster::CsgScratch& csg_scratch) {
+  sum.assign(static_cast<size_t>(band.row_end - band.row_begin) * static_cast<size_t>(f.width()),
+             0.0);
+  if (mesh.csg) {
+    raster::accumulateCsgBand(scene, f.bins[b], *mesh.csg, band.row_begin, band.row_end,
+                              f.col_begin, f.width(), sum.data(), csg_scratch);
+    return;
+  }
+  for (uint32_t i : f.bins[b]) accumulateTriangle(scene.triangles[i], band, f, sum.data());
+}
+
+// Projects the mesh into `scene` and, for a CSG part, marks the pieces.
+void setupMesh(const Machine& machine, const WorldMesh& mesh, int n, const PixelRect& region,
+               SceneSetup& scene) {
+  raster::setupScene(machine, mesh.vertices_mm, mesh.triangles, n, region, scene);
+  if (mesh.csg) raster::assignPieces(*mesh.csg, scene);
+}
+
 // (`out` is resized to the region; `background` where the part's footprint is not.)
 template <typename T, typename Shade>
 void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
@@ -138,7 +159,7 @@ void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const R
   // their own thread_local instance.
   thread_local SceneSetup scratch;
   SceneSetup& scene = scratch;
-  raster::setupScene(machine, mesh.vertices_mm, mesh.triangles, n, region, scene);
+  setupMesh(machine, mesh, n, region, scene);
   if (out.width() != region.width || out.height() != region.height)
     out.resize(region.width, region.height);
 
@@ -164,12 +185,12 @@ void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const R
   const SampleDistances distances = sampleDistances(machine, f);
   const double inv_samples = 1.0 / (n * n);
   tbb::enumerable_thread_specific<std::vector<double>> buffers;
+  tbb::enumerable_thread_specific<raster::CsgScratch> csg_buffers;
   tbb::parallel_for(size_t{0}, f.bands.size(), [&](size_t b) {
     const Band& band = f.bands[b];
     std::vector<double>& sum = buffers.local();
     const size_t width = static_cast<size_t>(f.width());
-    sum.assign(static_cast<size_t>(band.row_end - band.row_begin) * width, 0.0);
-    for (uint32_t i : f.bins[b]) accumulateTriangle(scene.triangles[i], band, f, sum.data());
+    bandSums(scene, mesh, band, f, b, sum, csg_buffers.local());
     // Resolve: path per sample, shade, average over the pixel's samples.
     for (int v = band.row_begin / n; v < band.row_end / n; ++v) {
       T* out_row = out.row(v - region.y);
@@ -267,7 +288,7 @@ RenderDiagnostics renderDiagnosticsIsolated(const Machine& machine, const WorldM
   // their own thread_local instance.
   thread_local SceneSetup scratch;
   SceneSetup& scene = scratch;
-  raster::setupScene(machine, mesh.vertices_mm, mesh.triangles, n, region, scene);
+  setupMesh(machine, mesh, n, region, scene);
   RenderDiagnostics d;
   d.entries.resize(region.width, region.height, 0);
   d.exits.resize(region.width, region.height, 0);
@@ -283,11 +304,12 @@ RenderDiagnostics renderDiagnosticsIsolated(const Machine& machine, const WorldM
   tbb::parallel_for(size_t{0}, f.bands.size(), [&](size_t b) {
     const Band& band = f.bands[b];
     const size_t count = static_cast<size_t>(band.row_end - band.row_begin) * width;
-    std::vector<double> sum(count, 0.0);
+    std::vector<double> sum;
+    raster::CsgScratch csg_scratch;
+    bandSums(scene, mesh, band, f, b, sum, csg_scratch);
     std::vector<int32_t> entries(count, 0), exits(count, 0);
     for (uint32_t i : f.bins[b]) {
       const TriangleSetup& t = scene.triangles[i];
-      accumulateTriangle(t, band, f, sum.data());
       auto& counter = t.sigma > 0 ? exits : entries;
       raster::forEachSpan(t, band.row_begin, band.row_end, [&](int line, int k0, int k1) {
         for (int k = k0; k <= k1; ++k) {

@@ -46,7 +46,7 @@ TriangleMesh cuboid(double sx, double sy, double sz) {
 
 WorldMesh posed(const TriangleMesh& mesh, const Pose& pose, std::vector<Vec3>& storage) {
   poseVertices(pose, mesh.vertices, storage);
-  return {storage, mesh.triangles};
+  return {storage, mesh.triangles, mesh.csg.get()};
 }
 
 Pose randomPose(std::mt19937_64& rng, double z_mid, double spread_mm) {

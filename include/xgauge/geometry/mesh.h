@@ -5,9 +5,11 @@
 
 #include "xgauge/core/error.h"
 #include "xgauge/core/transform.h"
+#include "xgauge/geometry/csg.h"
 
 #include <array>
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
@@ -20,9 +22,12 @@ using Triangle = std::array<uint32_t, 3>;
 
 // A closed surface in part coordinates (mm). Vertices are shared between the
 // triangles that meet there (indexed, not a triangle soup).
+// A CSG part (csg.h) is several closed surfaces, one per piece, in
+// consecutive triangle ranges, with `csg` saying how they combine.
 struct TriangleMesh {
   std::vector<Vec3> vertices;
   std::vector<Triangle> triangles;
+  std::shared_ptr<const Csg> csg;  // null: the mesh is one solid
 };
 
 // Axis-aligned box, mm. An empty mesh gives min = +inf, max = -inf.

@@ -58,6 +58,7 @@
 
 #include "xgauge/core/config.h"
 #include "xgauge/core/transform.h"
+#include "xgauge/geometry/csg.h"
 #include "xgauge/geometry/mesh.h"
 
 #include <filesystem>
@@ -140,6 +141,8 @@ class PartModel {
   // Fixed when the model is loaded, outward at nominal values.
   const std::vector<Triangle>& triangles() const;
   size_t vertexCount() const;
+  // How the pieces of a CSG part combine; null when the part is one solid.
+  const std::shared_ptr<const Csg>& csg() const;
 
  private:
   struct Definition;

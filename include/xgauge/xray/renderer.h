@@ -4,7 +4,8 @@
 //
 // Contract:
 // - The mesh is closed and outward-oriented (geometry/mesh.h checks this),
-//   given in world coordinates (mm), every vertex with 0 <= z < D.
+//   given in world coordinates (mm), every vertex with 0 <= z < D; or, for a
+//   CSG part, each of its pieces is.
 // - Exactly watertight: on every sample ray the number of surface entries
 //   equals the number of exits, whatever the pose (see src/xray/rasterizer.h).
 // - Area sampling: n x n samples per pixel on a regular grid, sample (i, j)
@@ -18,6 +19,7 @@
 #pragma once
 
 #include "xgauge/core/transform.h"
+#include "xgauge/geometry/csg.h"
 #include "xgauge/image/image.h"
 #include "xgauge/material/transmission_table.h"
 #include "xgauge/xray/machine.h"
@@ -39,9 +41,12 @@ struct RenderOptions {
 };
 
 // A posed mesh: vertices in world coordinates (mm), triangles outward CCW.
+// With `csg`, the triangles are the CSG's pieces, each closed, and a ray's
+// path is through their boolean combination (geometry/csg.h).
 struct WorldMesh {
   std::span<const Vec3> vertices_mm;
   std::span<const std::array<uint32_t, 3>> triangles;
+  const Csg* csg = nullptr;
 };
 
 // world[i] = pose.apply(part[i]); `world` is resized, its capacity reused.

@@ -1,0 +1,198 @@
+#include "solid.h"
+
+#include "xgauge/geometry/polygon.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+
+namespace xgauge {
+namespace {
+
+// Reads the tree depth first, appending pieces, placements and the postfix
+// program to `spec`.
+class TreeReader {
+ public:
+  TreeReader(const std::filesystem::path& directory, SolidSpec& spec)
+      : directory_(directory), spec_(spec) {}
+
+  void read(const ConfigNode& node, const std::vector<uint32_t>& outer) {
+    const std::vector<uint32_t> chain = placementChain(node, outer);
+    const std::string type = node.at("type").string();
+    if (type == "union" || type == "difference" || type == "intersection") {
+      const ConfigNode solids = node.at("solids");
+      if (!solids.isArray() || solids.size() == 0)
+        solids.fail(fmt::format("a {} needs a list of one or more solids", type));
+      for (size_t i = 0; i < solids.size(); ++i) read(solids[i], chain);
+      const Csg::Op op = type == "union"        ? Csg::Op::kUnion
+                         : type == "difference" ? Csg::Op::kDifference
+                                                : Csg::Op::kIntersection;
+      spec_.program.push_back({op, static_cast<uint32_t>(solids.size())});
+      return;
+    }
+    ShapeSpec shape = readShapeSpec(node, directory_);
+    const auto holes = type == "extrusion" ? node.find("holes") : std::nullopt;
+    if (!holes) {
+      addPiece(node, std::move(shape), chain);
+      return;
+    }
+    // Holes through an extrusion: the outer prism minus prisms of the holes,
+    // made longer than the outer one by a twentieth of its length at each end
+    // so that no cap of a hole coincides with an outer cap.
+    if (!holes->isArray() || holes->size() == 0)
+      holes->fail("expected a list of hole profiles, each a list of [a, b] points");
+    std::vector<ShapeSpec> hole_shapes;
+    const ExpressionSource& from = shape.scalars[shape.scalars.size() - 2];
+    const ExpressionSource& to = shape.scalars.back();
+    for (size_t h = 0; h < holes->size(); ++h) {
+      const ConfigNode profile = (*holes)[h];
+      if (!profile.isArray() || profile.size() < 3)
+        profile.fail("expected a hole profile: a list of at least 3 [a, b] points");
+      ShapeSpec hole = shape;
+      hole.where = profile.where();
+      hole.scalars.clear();
+      for (size_t i = 0; i < profile.size(); ++i) {
+        const ConfigNode point = profile[i];
+        if (!point.isArray() || point.size() != 2) point.fail("expected a list of 2 expressions");
+        hole.scalars.push_back(readExpression(point[0]));
+        hole.scalars.push_back(readExpression(point[1]));
+      }
+      const std::string f = "(" + from.text + ")", t = "(" + to.text + ")";
+      hole.scalars.push_back({f + " - (" + t + " - " + f + ") / 20", from.where});
+      hole.scalars.push_back({t + " + (" + t + " - " + f + ") / 20", to.where});
+      hole_shapes.push_back(std::move(hole));
+    }
+    addPiece(node, std::move(shape), chain);
+    for (ShapeSpec& hole : hole_shapes) addPiece(node, std::move(hole), chain);
+    spec_.program.push_back(
+        {Csg::Op::kDifference, static_cast<uint32_t>(hole_shapes.size() + 1)});
+  }
+
+ private:
+  // The node's own placement (if it has "rotate" or "translate") before the
+  // enclosing ones.
+  std::vector<uint32_t> placementChain(const ConfigNode& node, const std::vector<uint32_t>& outer) {
+    const auto rotate = node.find("rotate");
+    const auto translate = node.find("translate");
+    if (!rotate && !translate) return outer;
+    SolidSpec::Placement placement{spec_.scalars.size()};
+    for (const auto& part : {rotate, translate}) {
+      if (!part) {
+        for (int k = 0; k < 3; ++k) spec_.scalars.push_back({"0", node.where()});
+        continue;
+      }
+      if (!part->isArray() || part->size() != 3) part->fail("expected a list of 3 expressions");
+      for (size_t k = 0; k < 3; ++k) spec_.scalars.push_back(readExpression((*part)[k]));
+    }
+    std::vector<uint32_t> chain{static_cast<uint32_t>(spec_.placements.size())};
+    spec_.placements.push_back(placement);
+    chain.insert(chain.end(), outer.begin(), outer.end());
+    return chain;
+  }
+
+  void addPiece(const ConfigNode& node, ShapeSpec shape, const std::vector<uint32_t>& chain) {
+    if (spec_.pieces.size() == Csg::kMaxPieces)
+      node.fail(fmt::format("a part has at most {} solids (holes of an extrusion count as solids)",
+                            Csg::kMaxPieces));
+    SolidSpec::Piece piece;
+    piece.first_scalar = spec_.scalars.size();
+    spec_.scalars.insert(spec_.scalars.end(), shape.scalars.begin(), shape.scalars.end());
+    piece.shape = std::move(shape);
+    piece.placements = chain;
+    spec_.program.push_back({Csg::Op::kPiece, static_cast<uint32_t>(spec_.pieces.size())});
+    spec_.pieces.push_back(std::move(piece));
+  }
+
+  const std::filesystem::path& directory_;
+  SolidSpec& spec_;
+};
+
+// Why a closed surface with these vertex positions is not a solid: negative
+// or (almost) zero signed volume; nullopt when it is one. Linear in the
+// triangle count, so cheap beside any render.
+// `own`: the vertices of this surface; `triangles` index `vertices`.
+std::optional<std::string> turnedInsideOut(std::span<const Vec3> vertices,
+                                           std::span<const Vec3> own,
+                                           std::span<const Triangle> triangles) {
+  if (own.empty()) return std::nullopt;
+  Vec3 lo = own.front(), hi = lo;
+  for (const Vec3& v : own) lo = lo.cwiseMin(v), hi = hi.cwiseMax(v);
+  const double diagonal = (hi - lo).norm();
+  const double volume = signedVolume(vertices, triangles);
+  if (volume > kZeroAreaTolerance * diagonal * diagonal * diagonal) return std::nullopt;
+  return volume < 0 ? fmt::format("the surface turns inside out (signed volume {:.6g} mm^3)", volume)
+                    : fmt::format("the surface encloses no volume ({:.6g} mm^3)", volume);
+}
+
+}  // namespace
+
+SolidSpec readSolidSpec(const ConfigNode& shape, const std::filesystem::path& directory) {
+  SolidSpec spec;
+  spec.where = shape.where();
+  spec.is_stl = shape.at("type").string() == "stl";
+  TreeReader(directory, spec).read(shape, {});
+  return spec;
+}
+
+Solid::Solid(const SolidSpec& spec, std::span<const double> nominal_scalars) {
+  std::vector<uint32_t> ends;
+  for (const SolidSpec::Piece& p : spec.pieces) {
+    Piece piece;
+    piece.first_scalar = p.first_scalar;
+    piece.scalar_count = p.shape.scalars.size();
+    piece.shape = buildShape(p.shape, nominal_scalars.subspan(p.first_scalar, piece.scalar_count));
+    piece.first_vertex = static_cast<uint32_t>(vertex_count_);
+    piece.first_triangle = static_cast<uint32_t>(triangles_.size());
+    for (const Triangle& t : piece.shape->triangles())
+      triangles_.push_back({t[0] + piece.first_vertex, t[1] + piece.first_vertex,
+                            t[2] + piece.first_vertex});
+    piece.triangle_end = static_cast<uint32_t>(triangles_.size());
+    vertex_count_ += piece.shape->vertexCount();
+    XG_CHECK(vertex_count_ < (uint64_t{1} << 32), "too many vertices");
+    piece.placements = p.placements;
+    piece.where = p.shape.where;
+    ends.push_back(piece.triangle_end);
+    pieces_.push_back(std::move(piece));
+  }
+  for (const SolidSpec::Placement& placement : spec.placements)
+    placement_scalars_.push_back(placement.first_scalar);
+  if (pieces_.size() > 1) csg_ = std::make_shared<const Csg>(std::move(ends), spec.program);
+}
+
+void Solid::place(std::span<const double> scalars, std::span<Vec3> out) const {
+  for (const Piece& piece : pieces_) {
+    const std::span<Vec3> vertices = out.subspan(piece.first_vertex, piece.shape->vertexCount());
+    piece.shape->place(scalars.subspan(piece.first_scalar, piece.scalar_count), vertices);
+    for (uint32_t p : piece.placements) {
+      const double* s = scalars.data() + placement_scalars_[p];
+      const Pose pose = Pose::fromEulerDeg({s[0], s[1], s[2]}, {s[3], s[4], s[5]});
+      for (Vec3& v : vertices) v = pose.apply(v);
+    }
+  }
+}
+
+std::optional<Solid::Problem> Solid::problem(std::span<const double> scalars,
+                                             std::span<const Vec3> vertices) const {
+  for (const Piece& piece : pieces_) {
+    const std::string_view fold =
+        piece.shape->fold(scalars.subspan(piece.first_scalar, piece.scalar_count));
+    std::optional<std::string> why;
+    if (!fold.empty()) {
+      why = std::string(fold);
+    } else {
+      // The connectivity is fixed and was checked at load; what values can
+      // break is the orientation: a surface turned inside out, or flattened.
+      why = turnedInsideOut(
+          vertices, vertices.subspan(piece.first_vertex, piece.shape->vertexCount()),
+          std::span<const Triangle>(triangles_)
+              .subspan(piece.first_triangle, piece.triangle_end - piece.first_triangle));
+    }
+    if (!why) continue;
+    if (pieces_.size() > 1) *why = fmt::format("solid {}: {}", piece.where.key_path, *why);
+    return Problem{std::move(*why), piece.where};
+  }
+  return std::nullopt;
+}
+
+}  // namespace xgauge

@@ -1,0 +1,90 @@
+// A part's solid as its file describes it (the "shape" object): one
+// primitive, or a CSG tree of primitives (union, difference, intersection),
+// each node optionally placed by a rotation and a translation that are
+// expressions of the dimensions. Keys are documented in
+// xgauge/geometry/part_model.h and docs/formats.md.
+//
+// The pieces' meshes are concatenated (vertices and triangles in tree order);
+// a tree of more than one piece carries a Csg that tells the renderer how to
+// combine them. An extrusion with holes becomes a difference of prisms.
+#pragma once
+
+#include "shape.h"
+
+#include "xgauge/core/transform.h"
+#include "xgauge/geometry/csg.h"
+
+#include <memory>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace xgauge {
+
+struct SolidSpec {
+  // A rotation (degrees, fixed axes x then y then z, as poses) then a
+  // translation: six scalars from `first_scalar` (rx, ry, rz, tx, ty, tz).
+  struct Placement {
+    size_t first_scalar = 0;
+  };
+  struct Piece {
+    ShapeSpec shape;
+    size_t first_scalar = 0;          // its scalars in `scalars`
+    std::vector<uint32_t> placements;  // innermost first
+  };
+
+  std::vector<Piece> pieces;
+  std::vector<Csg::Node> program;  // postfix over pieces
+  std::vector<Placement> placements;
+  std::vector<ExpressionSource> scalars;  // every piece's, and every placement's
+  SourceLocation where;                   // the root "shape" object
+  bool is_stl = false;                    // the root is an "stl" shape
+};
+
+// Reads the "shape" object, recursively.
+SolidSpec readSolidSpec(const ConfigNode& shape, const std::filesystem::path& directory);
+
+// The solid with its topology fixed at nominal values.
+class Solid {
+ public:
+  // Builds every piece at the nominal scalars (Throws Error located in the
+  // piece's object when one is not a closed outward surface).
+  Solid(const SolidSpec& spec, std::span<const double> nominal_scalars);
+
+  const std::vector<Triangle>& triangles() const { return triangles_; }
+  size_t vertexCount() const { return vertex_count_; }
+  // Null for a single piece: the part is that piece.
+  const std::shared_ptr<const Csg>& csg() const { return csg_; }
+
+  // Vertex positions (mm, part frame) from the evaluated scalars; `out` has
+  // vertexCount() elements. Allocates nothing.
+  void place(std::span<const double> scalars, std::span<Vec3> out) const;
+
+  // Why these scalars (and the vertices place() made from them) do not give
+  // every piece a solid: a piece's fold (Shape::fold) or its surface turned
+  // inside out or flattened (signed volume). The message, and the piece's
+  // place in the file.
+  struct Problem {
+    std::string message;
+    SourceLocation where;
+  };
+  std::optional<Problem> problem(std::span<const double> scalars,
+                                 std::span<const Vec3> vertices) const;
+
+ private:
+  struct Piece {
+    std::unique_ptr<const Shape> shape;
+    size_t first_scalar = 0, scalar_count = 0;
+    uint32_t first_vertex = 0, first_triangle = 0, triangle_end = 0;
+    std::vector<uint32_t> placements;
+    SourceLocation where;
+  };
+  std::vector<Piece> pieces_;
+  std::vector<size_t> placement_scalars_;
+  std::vector<Triangle> triangles_;
+  size_t vertex_count_ = 0;
+  std::shared_ptr<const Csg> csg_;
+};
+
+}  // namespace xgauge

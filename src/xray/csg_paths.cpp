@@ -35,18 +35,39 @@ void accumulateCsgBand(const SceneSetup& scene, std::span<const uint32_t> bin, c
            static_cast<size_t>(column - col_begin);
   };
 
-  // Pass 1: sums of the pieces that stand alone, and who covers each sample.
+  // Pass 1: sums of the pieces that stand alone, who covers each sample, and
+  // how many crossings it has.
   std::vector<uint8_t>& owner = scratch.owner;
+  std::vector<uint32_t>& count = scratch.count;
   owner.assign(samples, kNone);
+  count.assign(samples, 0);
   for (uint32_t i : bin) {
     const TriangleSetup& t = scene.triangles[i];
     const uint8_t piece = t.piece;
-    const double sigma = csg.alone(piece) ? t.sigma : 0.0;
-    forEachSample(t, row_begin, row_end, [&](int row, int column) {
-      const size_t s = index(row, column);
-      sum[s] += sigma * inverseMagnification(t, row, column);
-      const uint8_t o = owner[s];
-      owner[s] = (o == kNone || o == piece) ? piece : kMixed;
+    const bool alone = csg.alone(piece);
+    const double sigma = t.sigma;
+    // Two plain loops per span (the compiler vectorizes both); pieces that
+    // are nothing by themselves (holes) only mark their samples.
+    forEachSpan(t, row_begin, row_end, [&](int line, int k0, int k1) {
+      if (t.by_rows) {
+        const size_t first = index(line, k0);
+        const int n = k1 - k0 + 1;
+        if (alone) {
+          double* row = sum + first;
+          for (int j = 0; j < n; ++j) row[j] += sigma * inverseMagnification(t, line, k0 + j);
+        }
+        uint8_t* o = owner.data() + first;
+        for (int j = 0; j < n; ++j) o[j] = (o[j] == kNone || o[j] == piece) ? piece : kMixed;
+        uint32_t* c = count.data() + first;
+        for (int j = 0; j < n; ++j) ++c[j];
+      } else {
+        for (int k = k0; k <= k1; ++k) {
+          const size_t s = index(k, line);
+          if (alone) sum[s] += sigma * inverseMagnification(t, k, line);
+          owner[s] = (owner[s] == kNone || owner[s] == piece) ? piece : kMixed;
+          ++count[s];
+        }
+      }
     });
   }
 
@@ -89,17 +110,13 @@ void accumulateCsgBand(const SceneSetup& scene, std::span<const uint32_t> bin, c
     });
   };
 
-  // Pass 2: count, place and gather the crossings of the mixed samples.
-  std::vector<uint32_t>& count = scratch.count;
+  // Pass 2: place and gather the crossings of the mixed samples.
   std::vector<uint32_t>& start = scratch.start;
-  count.assign(samples, 0);
-  for (uint32_t i : bin)
-    for_each_mixed(scene.triangles[i], [&](int row, int column) { ++count[index(row, column)]; });
   start.resize(samples);
   uint32_t total = 0;
   for (size_t s = 0; s < samples; ++s) {
     start[s] = total;
-    total += count[s];
+    total += owner[s] == kMixed ? count[s] : 0;
   }
   scratch.crossings.resize(total);
   std::fill(count.begin(), count.end(), 0u);

@@ -132,6 +132,13 @@ const Pose kBracketPose = Pose::fromEulerDeg({10, -35, 0}, {-12.0, -12.0, 713.0}
 void BM_Bracket(benchmark::State& state) { csgLoop(state, "bracket.json", kBracketPose); }
 BENCHMARK(BM_Bracket)->ArgName("size")->Arg(1024)->Arg(4096)->Unit(benchmark::kMillisecond)->UseRealTime();
 
+// The bracket at the jaw's own rotation and distance: the base plate nearly
+// face-on, about as large on the detector as the jaw.
+void BM_BracketAtJawPose(benchmark::State& state) {
+  csgLoop(state, "bracket.json", Pose::fromEulerDeg({4, 17, 2}, {-20.0, -12.0, 713.0}));
+}
+BENCHMARK(BM_BracketAtJawPose)->ArgName("size")->Arg(1024)->Arg(4096)->Unit(benchmark::kMillisecond)->UseRealTime();
+
 void BM_BracketAsExtrusion(benchmark::State& state) {
   csgLoop(state, "../examples/bracket_extruded.json", kBracketPose);
 }

@@ -38,6 +38,32 @@ TEST_F(Cli, PathLengthOfACuboidFacingTheSource) {
   EXPECT_TRUE(fs::exists(out("path.png")));
 }
 
+// docs/formats.md's CSG example: an STL block minus a drilled hole whose
+// position is a dimension. Face-on, a ray through the hole crosses nothing;
+// one beside it crosses the block's 10 mm.
+TEST_F(Cli, StlBlockWithADrilledHole) {
+  const std::string machine = write("machine.json", kMachine);
+  const CommandResult r = run("render " + kRoot + "/examples/stl_with_hole.json --machine " +
+                              machine +
+                              " --quantity path --rotation-deg 0 0 0 --translation-mm 0 0 400"
+                              " --set bore_x=3 -o " + out("path.tif") + " -q");
+  ASSERT_EQ(r.status, 0) << r.output;
+  const Image path = readTiff(out("path.tif"));
+  // Pixel (74, 48): x = 5.25 mm on the detector, part x 3.12 to 3.18 mm
+  // along the ray inside the block: within the hole (radius 3 about x = 3).
+  EXPECT_EQ(path(74, 48), 0.0f);
+  // Pixel (58, 48): part x about -1.7 mm, solid block.
+  const double u = (58.5 - 64.0) * 0.5, v = (48.0 - 48.5) * 0.5;
+  EXPECT_NEAR(static_cast<double>(path(58, 48)), 10.0 * std::hypot(u, v, 1000.0) / 1000.0, 1e-5);
+  // Without the hole moved there, the same pixel sees the block.
+  const CommandResult moved = run("render " + kRoot + "/examples/stl_with_hole.json --machine " +
+                                  machine +
+                                  " --quantity path --rotation-deg 0 0 0 --translation-mm 0 0 400"
+                                  " --set bore_x=-3 -o " + out("moved.tif") + " -q");
+  ASSERT_EQ(moved.status, 0) << moved.output;
+  EXPECT_GT(readTiff(out("moved.tif"))(74, 48), 9.9f);
+}
+
 TEST_F(Cli, Intensity16BitIsScaledTransmission) {
   const std::string machine = write("machine.json", kMachine);
   const CommandResult r = run(renderArgs(kRoot + "/parts/cuboid.json", machine, "--format u16 -q"));

@@ -103,7 +103,7 @@ class ExtrudedShape final : public Shape {
  public:
   ExtrudedShape(const ShapeSpec& spec, std::span<const double> nominal)
       : axes_(spec.axes), n_((spec.scalars.size() - 2) / 2) {
-    const SourceLocation profile_where = child(spec.where, "profile");
+    const SourceLocation& profile_where = spec.profile_where;
     std::vector<Vec2> profile(n_);
     for (size_t i = 0; i < n_; ++i) profile[i] = {nominal[2 * i], nominal[2 * i + 1]};
     if (const std::string problem = simplePolygonProblem(profile); !problem.empty())
@@ -185,7 +185,7 @@ class RevolvedShape final : public Shape {
       for (size_t i = 0; i < points_; ++i) radius = std::max(radius, nominal[2 * i]);
       segments_ = segmentsForChordError(radius, kChordErrorMm);
     }
-    const SourceLocation profile_where = child(spec.where, "profile");
+    const SourceLocation& profile_where = spec.profile_where;
     if (points_ < 3)
       throw Error(
           fmt::format("a revolution profile needs at least 3 points, this one has {}", points_),
@@ -335,6 +335,7 @@ ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& di
                                  kAxisNames[3 - a - b]));
     spec.axes = {a, b, c};
     readPoints(shape.at("profile"), 2, spec.scalars);
+    spec.profile_where = shape.at("profile").where();
     spec.scalars.push_back(readExpression(shape.at("from")));
     spec.scalars.push_back(readExpression(shape.at("to")));
   } else if (type == "revolution") {
@@ -342,11 +343,13 @@ ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& di
     const int c = readAxis(shape.at("axis"));
     spec.axes = {(c + 1) % 3, (c + 2) % 3, c};
     readPoints(shape.at("profile"), 2, spec.scalars);
+    spec.profile_where = shape.at("profile").where();
     readSegments(shape, spec);
   } else if (type == "box") {
     // An extrusion of the (x, y) rectangle along z.
     spec.type = ShapeType::kExtrusion;
     spec.axes = {0, 1, 2};
+    spec.profile_where = spec.where;
     const auto lo = readTriple(shape.at("min"));
     const auto hi = readTriple(shape.at("max"));
     for (const auto* corner : {&lo[0], &lo[1], &hi[0], &lo[1], &hi[0], &hi[1], &lo[0], &hi[1]})
@@ -356,6 +359,7 @@ ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& di
   } else if (type == "cylinder") {
     // A revolution of the rectangle (0 .. d/2) x (from .. to) about its axis.
     spec.type = ShapeType::kRevolution;
+    spec.profile_where = spec.where;
     const int c = readAxis(shape.at("axis"));
     spec.axes = {(c + 1) % 3, (c + 2) % 3, c};
     const ExpressionSource diameter = readExpression(shape.at("diameter"));

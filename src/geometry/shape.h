@@ -28,6 +28,7 @@ enum class ShapeType { kExtrusion, kRevolution, kMesh, kStl };
 struct ShapeSpec {
   ShapeType type = ShapeType::kMesh;
   SourceLocation where;  // the "shape" object
+  SourceLocation profile_where;  // extrusion, revolution: where the profile was written
   std::vector<ExpressionSource> scalars;
   // extrusion: the profile's two axes, then the extrusion axis;
   // revolution: (u, v, axis), right-handed, angle measured from u towards v.

@@ -23,7 +23,8 @@ class TreeReader {
     if (type == "union" || type == "difference" || type == "intersection") {
       const ConfigNode solids = node.at("solids");
       if (!solids.isArray() || solids.size() == 0)
-        solids.fail(fmt::format("a {} needs a list of one or more solids", type));
+        solids.fail(fmt::format("{} {} needs a list of one or more solids",
+                                type == "intersection" ? "an" : "a", type));
       for (size_t i = 0; i < solids.size(); ++i) read(solids[i], chain);
       const Csg::Op op = type == "union"        ? Csg::Op::kUnion
                          : type == "difference" ? Csg::Op::kDifference
@@ -51,6 +52,7 @@ class TreeReader {
         profile.fail("expected a hole profile: a list of at least 3 [a, b] points");
       ShapeSpec hole = shape;
       hole.where = profile.where();
+      hole.profile_where = profile.where();
       hole.scalars.clear();
       for (size_t i = 0; i < profile.size(); ++i) {
         const ConfigNode point = profile[i];

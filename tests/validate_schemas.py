@@ -43,6 +43,8 @@ RULES = [
     ("examples", "calibrate_wedge*.json", "calibrate_wedge"),
     ("examples", "calibrate_*.json", "calibrate_part"),
     ("examples", "study_*.json", "study"),
+    ("examples", "bracket_extruded.json", "part_model"),
+    ("examples", "stl_with_hole.json", "part_model"),
     ("parts", "*.json", "part_model"),
     ("datasets", "*.json", "recipe"),
 ]

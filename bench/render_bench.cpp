@@ -44,17 +44,29 @@ const TransmissionTable& aluminium() {
   return table;
 }
 
+// One posed mesh rendered again and again into a preallocated image.
+struct PosedRender {
+  PosedRender(const TriangleMesh& posed_mesh, const Pose& pose, int size, int samples)
+      : mesh(posed_mesh), machine(detector(size)), image(size, size) {
+    poseVertices(pose, posed_mesh.vertices, world);
+    options.samples_per_axis = samples;
+  }
+  void operator()() {
+    renderIntensity(machine, {world, mesh.triangles, mesh.csg.get()}, aluminium(), options, image);
+  }
+  const TriangleMesh& mesh;
+  Machine machine;
+  std::vector<Vec3> world;
+  RenderOptions options;
+  Image image;
+};
+
 void renderLoop(benchmark::State& state, const TriangleMesh& mesh, const Pose& pose, int size,
                 int samples) {
-  const Machine m = detector(size);
-  std::vector<Vec3> world;
-  poseVertices(pose, mesh.vertices, world);
-  RenderOptions options;
-  options.samples_per_axis = samples;
-  Image image(size, size);
+  PosedRender render(mesh, pose, size, samples);
   for (auto _ : state) {
-    renderIntensity(m, {world, mesh.triangles, mesh.csg.get()}, aluminium(), options, image);
-    benchmark::DoNotOptimize(image.pixels().data());
+    render();
+    benchmark::DoNotOptimize(render.image.pixels().data());
   }
   state.counters["triangles"] = static_cast<double>(mesh.triangles.size());
   state.counters["Mpixel/s"] = benchmark::Counter(static_cast<double>(size) * size * 1e-6,
@@ -90,18 +102,14 @@ void BM_Cylinder100k(benchmark::State& state) {
 BENCHMARK(BM_Cylinder100k)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // Median milliseconds of `renders` renders of `mesh` at `pose`.
+// Median milliseconds of `renders` renders of `mesh` at `pose`.
 double medianRenderMs(const TriangleMesh& mesh, const Pose& pose, int size, int samples,
                       int renders) {
-  const Machine m = detector(size);
-  std::vector<Vec3> world;
-  poseVertices(pose, mesh.vertices, world);
-  RenderOptions options;
-  options.samples_per_axis = samples;
-  Image image(size, size);
+  PosedRender render(mesh, pose, size, samples);
   std::vector<double> ms;
   for (int i = 0; i < renders; ++i) {
     const auto start = std::chrono::steady_clock::now();
-    renderIntensity(m, {world, mesh.triangles, mesh.csg.get()}, aluminium(), options, image);
+    render();
     ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
                      .count());
   }

@@ -11,6 +11,7 @@
 namespace xgauge {
 namespace {
 
+using testing::kTetrahedronStl;
 using testing::writeTestFile;
 
 // A square with a notch: the profile (0,0) (w,0) (w,10) (p,5) (0,10) in the
@@ -378,13 +379,7 @@ TEST(PartModel, RevolutionWithPolesAndWithout) {
 
 TEST(PartModel, StlShapeIsRelativeToThePartFile) {
   // An ASCII tetrahedron beside the part file.
-  writeTestFile("tetra.stl", R"(solid t
-facet normal 0 0 0 outer loop vertex 0 0 0 vertex 0 1 0 vertex 1 0 0 endloop endfacet
-facet normal 0 0 0 outer loop vertex 0 0 0 vertex 1 0 0 vertex 0 0 1 endloop endfacet
-facet normal 0 0 0 outer loop vertex 0 0 0 vertex 0 0 1 vertex 0 1 0 endloop endfacet
-facet normal 0 0 0 outer loop vertex 1 0 0 vertex 0 1 0 vertex 0 0 1 endloop endfacet
-endsolid t
-)");
+  writeTestFile("tetra.stl", kTetrahedronStl);
   const PartModel model =
       loadText(R"({"description": "fixed", "shape": {"type": "stl", "file": "tetra.stl"}})");
   EXPECT_TRUE(model.dimensions().empty());

@@ -20,6 +20,7 @@
 namespace xgauge {
 namespace {
 
+using testing::kTetrahedronStl;
 using testing::writeTestFile;
 using Op = Csg::Op;
 
@@ -577,13 +578,7 @@ TEST(Solid, AtMost64Pieces) {
 // Inside a tree, an STL file is a fixed solid that dimensions can cut or add
 // to (docs/formats.md); its placement applies to it as to any solid.
 TEST(Solid, StlPieceInATree) {
-  writeTestFile("tetra.stl", R"(solid t
-facet normal 0 0 0 outer loop vertex 0 0 0 vertex 0 1 0 vertex 1 0 0 endloop endfacet
-facet normal 0 0 0 outer loop vertex 0 0 0 vertex 1 0 0 vertex 0 0 1 endloop endfacet
-facet normal 0 0 0 outer loop vertex 0 0 0 vertex 0 0 1 vertex 0 1 0 endloop endfacet
-facet normal 0 0 0 outer loop vertex 1 0 0 vertex 0 1 0 vertex 0 0 1 endloop endfacet
-endsolid t
-)");
+  writeTestFile("tetra.stl", kTetrahedronStl);
   const PartModel model = loadText(R"({"description": "box minus a tetrahedron",
     "dimensions": [{"name": "s", "nominal": 2, "min": 1, "max": 3, "unit": "mm"}],
     "shape": {"type": "difference", "solids": [

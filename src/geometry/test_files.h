@@ -24,4 +24,14 @@ inline std::filesystem::path writeTestFile(const std::string& name, const std::s
   return path;
 }
 
+// An ASCII STL of the unit corner tetrahedron (0, 0, 0), (1, 0, 0), (0, 1, 0),
+// (0, 0, 1), outward.
+inline const std::string kTetrahedronStl = R"(solid t
+facet normal 0 0 0 outer loop vertex 0 0 0 vertex 0 1 0 vertex 1 0 0 endloop endfacet
+facet normal 0 0 0 outer loop vertex 0 0 0 vertex 1 0 0 vertex 0 0 1 endloop endfacet
+facet normal 0 0 0 outer loop vertex 0 0 0 vertex 0 0 1 vertex 0 1 0 endloop endfacet
+facet normal 0 0 0 outer loop vertex 1 0 0 vertex 0 1 0 vertex 0 0 1 endloop endfacet
+endsolid t
+)";
+
 }  // namespace xgauge::testing

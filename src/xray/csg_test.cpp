@@ -5,6 +5,8 @@
 // src/geometry/solid_test.cpp.
 #include "xgauge/xray/renderer.h"
 
+#include "test_machines.h"
+
 #include "xgauge/core/config.h"
 #include "xgauge/geometry/mesh.h"
 #include "xgauge/geometry/part_model.h"
@@ -25,17 +27,9 @@
 namespace xgauge {
 namespace {
 
-const std::string kParts = std::string(XGAUGE_SOURCE_DIR) + "/parts/";
+using testing::kParts;
+using testing::squareMachine;
 constexpr double kPi = std::numbers::pi;
-
-Machine squareMachine(int size, double pitch_mm) {
-  Machine m;
-  m.source_detector_distance_mm = 1000.0;
-  m.columns = m.rows = size;
-  m.pitch_u_mm = m.pitch_v_mm = pitch_mm;
-  m.cx_px = m.cy_px = 0.5 * size;
-  return m;
-}
 
 PartModel partFromText(const std::string& text) {
   return PartModel::fromConfig(ConfigNode::parse(text, "csg_test.json"), "csg_test.json");

@@ -1,6 +1,8 @@
 // Closed-form and invariant checks of the renderer (issue: foundation).
 #include "xgauge/xray/renderer.h"
 
+#include "test_machines.h"
+
 #include "xgauge/core/parallel.h"
 #include "xgauge/geometry/mesh.h"
 #include "xgauge/geometry/part_model.h"
@@ -14,16 +16,8 @@
 namespace xgauge {
 namespace {
 
-const std::string kParts = std::string(XGAUGE_SOURCE_DIR) + "/parts/";
-
-Machine squareMachine(int size, double pitch_mm) {
-  Machine m;
-  m.source_detector_distance_mm = 1000.0;
-  m.columns = m.rows = size;
-  m.pitch_u_mm = m.pitch_v_mm = pitch_mm;
-  m.cx_px = m.cy_px = 0.5 * size;
-  return m;
-}
+using testing::kParts;
+using testing::squareMachine;
 
 // Ray from the source to the centre of pixel (u, v) of a region.
 struct Ray {

@@ -31,8 +31,10 @@ class Csg {
   };
 
   // `piece_triangle_end[i]`: one past the last triangle of piece i (pieces are
-  // consecutive, starting at triangle 0). Checks the program: every piece
-  // used, well formed, leaves one value. Throws Error otherwise.
+  // consecutive, starting at triangle 0). Throws Error for no pieces or more
+  // than kMaxPieces; a malformed program (a piece missing or used twice, an
+  // operation without its operands, more than one value left) is a bug of
+  // the caller and aborts (XG_CHECK).
   Csg(std::vector<uint32_t> piece_triangle_end, std::vector<Node> program);
 
   size_t pieces() const { return piece_triangle_end_.size(); }

@@ -10,8 +10,7 @@ namespace xgauge {
 Csg::Csg(std::vector<uint32_t> piece_triangle_end, std::vector<Node> program)
     : piece_triangle_end_(std::move(piece_triangle_end)), program_(std::move(program)) {
   const size_t n = piece_triangle_end_.size();
-  if (n == 0 || n > kMaxPieces)
-    fail("a part has 1 to {} solids, this one has {}", kMaxPieces, n);
+  if (n == 0 || n > kMaxPieces) fail("a part has 1 to {} solids, this one has {}", kMaxPieces, n);
   XG_CHECK(std::is_sorted(piece_triangle_end_.begin(), piece_triangle_end_.end()),
            "piece triangle ranges out of order");
   // Well formed: the stack never runs dry and ends with one value; every
@@ -24,8 +23,8 @@ Csg::Csg(std::vector<uint32_t> piece_triangle_end, std::vector<Node> program)
       ++used[node.arg];
       ++depth;
     } else {
-      XG_CHECK(node.arg >= 1 && node.arg <= depth, "CSG operation with {} operands on {}",
-               node.arg, depth);
+      XG_CHECK(node.arg >= 1 && node.arg <= depth, "CSG operation with {} operands on {}", node.arg,
+               depth);
       depth -= node.arg - 1;
     }
   }
@@ -59,10 +58,17 @@ bool Csg::evaluate(uint64_t inside) const {
     bool value = stack[first];
     for (size_t k = first + 1; k < top; ++k) {
       switch (node.op) {
-        case Op::kUnion: value = value || stack[k]; break;
-        case Op::kIntersection: value = value && stack[k]; break;
-        case Op::kDifference: value = value && !stack[k]; break;
-        case Op::kPiece: break;
+        case Op::kUnion:
+          value = value || stack[k];
+          break;
+        case Op::kIntersection:
+          value = value && stack[k];
+          break;
+        case Op::kDifference:
+          value = value && !stack[k];
+          break;
+        case Op::kPiece:
+          break;
       }
     }
     top = first;

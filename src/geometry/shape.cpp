@@ -366,7 +366,8 @@ ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& di
     const ExpressionSource from = readExpression(shape.at("from"));
     const ExpressionSource to = readExpression(shape.at("to"));
     const ExpressionSource zero = derivedExpression("0", diameter.where);
-    const ExpressionSource radius = derivedExpression("(" + diameter.text + ") / 2", diameter.where);
+    const ExpressionSource radius =
+        derivedExpression(fmt::format("({}) / 2", diameter.text), diameter.where);
     for (const auto* s : {&zero, &from, &radius, &from, &radius, &to, &zero, &to})
       spec.scalars.push_back(*s);
     readSegments(shape, spec);

@@ -60,15 +60,15 @@ class TreeReader {
         hole.scalars.push_back(readExpression(point[0]));
         hole.scalars.push_back(readExpression(point[1]));
       }
-      const std::string f = "(" + from.text + ")", t = "(" + to.text + ")";
-      hole.scalars.push_back({f + " - (" + t + " - " + f + ") / 20", from.where});
-      hole.scalars.push_back({t + " + (" + t + " - " + f + ") / 20", to.where});
+      hole.scalars.push_back(
+          {fmt::format("({0}) - (({1}) - ({0})) / 20", from.text, to.text), from.where});
+      hole.scalars.push_back(
+          {fmt::format("({1}) + (({1}) - ({0})) / 20", from.text, to.text), to.where});
       hole_shapes.push_back(std::move(hole));
     }
     addPiece(node, std::move(shape), chain);
     for (ShapeSpec& hole : hole_shapes) addPiece(node, std::move(hole), chain);
-    spec_.program.push_back(
-        {Csg::Op::kDifference, static_cast<uint32_t>(hole_shapes.size() + 1)});
+    spec_.program.push_back({Csg::Op::kDifference, static_cast<uint32_t>(hole_shapes.size() + 1)});
   }
 
  private:
@@ -123,8 +123,9 @@ std::optional<std::string> turnedInsideOut(std::span<const Vec3> vertices,
   const double diagonal = (hi - lo).norm();
   const double volume = signedVolume(vertices, triangles);
   if (volume > kZeroAreaTolerance * diagonal * diagonal * diagonal) return std::nullopt;
-  return volume < 0 ? fmt::format("the surface turns inside out (signed volume {:.6g} mm^3)", volume)
-                    : fmt::format("the surface encloses no volume ({:.6g} mm^3)", volume);
+  return volume < 0
+             ? fmt::format("the surface turns inside out (signed volume {:.6g} mm^3)", volume)
+             : fmt::format("the surface encloses no volume ({:.6g} mm^3)", volume);
 }
 
 }  // namespace
@@ -147,8 +148,8 @@ Solid::Solid(const SolidSpec& spec, std::span<const double> nominal_scalars) {
     piece.first_vertex = static_cast<uint32_t>(vertex_count_);
     piece.first_triangle = static_cast<uint32_t>(triangles_.size());
     for (const Triangle& t : piece.shape->triangles())
-      triangles_.push_back({t[0] + piece.first_vertex, t[1] + piece.first_vertex,
-                            t[2] + piece.first_vertex});
+      triangles_.push_back(
+          {t[0] + piece.first_vertex, t[1] + piece.first_vertex, t[2] + piece.first_vertex});
     piece.triangle_end = static_cast<uint32_t>(triangles_.size());
     vertex_count_ += piece.shape->vertexCount();
     XG_CHECK(vertex_count_ < (uint64_t{1} << 32), "too many vertices");

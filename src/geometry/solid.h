@@ -30,7 +30,7 @@ struct SolidSpec {
   };
   struct Piece {
     ShapeSpec shape;
-    size_t first_scalar = 0;          // its scalars in `scalars`
+    size_t first_scalar = 0;           // its scalars in `scalars`
     std::vector<uint32_t> placements;  // innermost first
   };
 

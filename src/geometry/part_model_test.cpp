@@ -11,7 +11,9 @@
 namespace xgauge {
 namespace {
 
+using testing::expectLoadError;
 using testing::kTetrahedronStl;
+using testing::loadText;
 using testing::writeTestFile;
 
 // A square with a notch: the profile (0,0) (w,0) (w,10) (p,5) (0,10) in the
@@ -32,23 +34,6 @@ constexpr const char* kNotchedBar = R"({
     "from": "0", "to": "L"
   }
 })";
-
-PartModel loadText(const std::string& text, const std::string& name = "part.json") {
-  return PartModel::load(writeTestFile(name, text));
-}
-
-// Loading `text` fails with exactly this message, at this key path.
-void expectLoadError(const std::string& text, const std::string& message,
-                     const std::string& key_path) {
-  try {
-    loadText(text);
-    FAIL() << "expected: " << message;
-  } catch (const Error& e) {
-    EXPECT_EQ(e.message(), message);
-    EXPECT_EQ(e.where().key_path, key_path);
-    EXPECT_NE(e.where().file.find("part.json"), std::string::npos);
-  }
-}
 
 std::string replaced(std::string text, const std::string& from, const std::string& to) {
   const size_t at = text.find(from);

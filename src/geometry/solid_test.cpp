@@ -20,7 +20,9 @@
 namespace xgauge {
 namespace {
 
+using testing::expectLoadError;
 using testing::kTetrahedronStl;
+using testing::loadText;
 using testing::writeTestFile;
 using Op = Csg::Op;
 
@@ -253,23 +255,6 @@ TEST(CsgDeathTest, MalformedProgramsAreRefused) {
 
 PartModel loadPart(const std::string& name) {
   return PartModel::load(std::filesystem::path(XGAUGE_SOURCE_DIR) / "parts" / (name + ".json"));
-}
-
-PartModel loadText(const std::string& text) {
-  return PartModel::load(writeTestFile("part.json", text));
-}
-
-// Loading `text` fails with exactly this message, at this key path.
-void expectLoadError(const std::string& text, const std::string& message,
-                     const std::string& key_path) {
-  try {
-    loadText(text);
-    FAIL() << "expected: " << message;
-  } catch (const Error& e) {
-    EXPECT_EQ(e.message(), message);
-    EXPECT_EQ(e.where().key_path, key_path);
-    EXPECT_NE(e.where().file.find("part.json"), std::string::npos);
-  }
 }
 
 // Segments for a 0.001 mm chord error, from the sagitta r (1 - cos(pi / N)),

@@ -2,6 +2,9 @@
 // test (tests may run in parallel processes).
 #pragma once
 
+#include "xgauge/core/error.h"
+#include "xgauge/geometry/part_model.h"
+
 #include <gtest/gtest.h>
 
 #include <filesystem>
@@ -22,6 +25,24 @@ inline std::filesystem::path writeTestFile(const std::string& name, const std::s
   auto path = testFile(name);
   std::ofstream(path, std::ios::binary) << contents;
   return path;
+}
+
+// A part model written to a file named `name` in the test's folder, loaded.
+inline PartModel loadText(const std::string& text, const std::string& name = "part.json") {
+  return PartModel::load(writeTestFile(name, text));
+}
+
+// Loading `text` fails with exactly this message, at this key path.
+inline void expectLoadError(const std::string& text, const std::string& message,
+                            const std::string& key_path) {
+  try {
+    loadText(text);
+    FAIL() << "expected: " << message;
+  } catch (const Error& e) {
+    EXPECT_EQ(e.message(), message);
+    EXPECT_EQ(e.where().key_path, key_path);
+    EXPECT_NE(e.where().file.find("part.json"), std::string::npos);
+  }
 }
 
 // An ASCII STL of the unit corner tetrahedron (0, 0, 0), (1, 0, 0), (0, 1, 0),

@@ -28,30 +28,13 @@ namespace xgauge {
 namespace {
 
 using testing::kParts;
+using testing::posed;
+using testing::randomPose;
 using testing::squareMachine;
 constexpr double kPi = std::numbers::pi;
 
 PartModel partFromText(const std::string& text) {
   return PartModel::fromConfig(ConfigNode::parse(text, "csg_test.json"), "csg_test.json");
-}
-
-WorldMesh posed(const TriangleMesh& mesh, const Pose& pose, std::vector<Vec3>& storage) {
-  poseVertices(pose, mesh.vertices, storage);
-  return {storage, mesh.triangles, mesh.csg.get()};
-}
-
-// A random rotation about `centre` (part frame), the centre then placed at
-// (x, y, z_mid) with x, y, z - z_mid uniform in [-spread, spread].
-Pose randomPose(std::mt19937_64& rng, const Vec3& centre, double z_mid, double spread_mm) {
-  std::normal_distribution<double> gauss;
-  Eigen::Quaterniond q(gauss(rng), gauss(rng), gauss(rng), gauss(rng));
-  q.normalize();
-  std::uniform_real_distribution<double> offset(-spread_mm, spread_mm);
-  Pose pose;
-  pose.rotation = q.toRotationMatrix();
-  pose.translation_mm =
-      Vec3(offset(rng), offset(rng), z_mid + offset(rng)) - pose.rotation * centre;
-  return pose;
 }
 
 // Places `centre` (part frame) at `at` after rotating by Euler angles (deg).

@@ -17,6 +17,8 @@ namespace xgauge {
 namespace {
 
 using testing::kParts;
+using testing::posed;
+using testing::randomPose;
 using testing::squareMachine;
 
 // Ray from the source to the centre of pixel (u, v) of a region.
@@ -36,22 +38,6 @@ TriangleMesh cuboid(double sx, double sy, double sz) {
   mesh.triangles = {{0, 2, 1}, {1, 2, 3}, {4, 5, 6}, {5, 7, 6}, {0, 1, 4}, {1, 5, 4},
                     {2, 6, 3}, {3, 6, 7}, {0, 4, 2}, {2, 4, 6}, {1, 3, 5}, {3, 7, 5}};
   return mesh;
-}
-
-WorldMesh posed(const TriangleMesh& mesh, const Pose& pose, std::vector<Vec3>& storage) {
-  poseVertices(pose, mesh.vertices, storage);
-  return {storage, mesh.triangles, mesh.csg.get()};
-}
-
-Pose randomPose(std::mt19937_64& rng, double z_mid, double spread_mm) {
-  std::normal_distribution<double> gauss;
-  Eigen::Quaterniond q(gauss(rng), gauss(rng), gauss(rng), gauss(rng));
-  q.normalize();
-  std::uniform_real_distribution<double> offset(-spread_mm, spread_mm);
-  Pose pose;
-  pose.rotation = q.toRotationMatrix();
-  pose.translation_mm = Vec3(offset(rng), offset(rng), z_mid + offset(rng));
-  return pose;
 }
 
 TEST(Renderer, CuboidFacingTheSourceHasClosedFormPathLength) {
@@ -197,7 +183,7 @@ TEST(Renderer, PrismJawMatchesIndependentCsgOnRandomPoses) {
   double worst = 0.0;
   for (int trial = 0; trial < 20; ++trial) {
     // Rotate about the jaw's centre, then place it between source and detector.
-    const Pose turn = randomPose(rng, 450.0, 8.0);
+    const Pose turn = randomPose(rng, Vec3::Zero(), 450.0, 8.0);
     Pose pose = turn;
     pose.translation_mm = turn.translation_mm - turn.rotation * Vec3(10.5, 20.0, 6.5);
     renderPathLength(m, posed(mesh, pose, world), {}, path);
@@ -242,7 +228,7 @@ void checkWatertight(const TriangleMesh& mesh, const Vec3& centre, int poses, ui
                                 Vec3::Zero());
       pose.translation_mm = -pose.rotation * centre + Vec3(0.2 * shift(rng), 0.2 * shift(rng), 500.0);
     } else {
-      pose = randomPose(rng, 500.0, 15.0);
+      pose = randomPose(rng, Vec3::Zero(), 500.0, 15.0);
       pose.translation_mm -= pose.rotation * centre;
     }
     const RenderDiagnostics d = renderDiagnostics(m, posed(mesh, pose, world), {});
@@ -276,7 +262,7 @@ TEST(Renderer, ZeroAreaSliverKeepsTheSurfaceWatertight) {
   std::mt19937_64 rng(4);
   std::vector<Vec3> a, b;
   for (int trial = 0; trial < 50; ++trial) {
-    const Pose pose = randomPose(rng, 500.0, 15.0);
+    const Pose pose = randomPose(rng, Vec3::Zero(), 500.0, 15.0);
     ImageT<double> with, without;
     renderPathLength(m, posed(sliver, pose, a), {}, with);
     renderPathLength(m, posed(plain, pose, b), {}, without);

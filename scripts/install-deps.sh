@@ -10,6 +10,7 @@ packages=(
   libtiff-dev          # TIFF read/write
   libxrl-dev           # xraylib: attenuation data
   libnlopt-cxx-dev     # NLopt with the C++ interface
+  libceres-dev         # Ceres Solver: the final least-squares stage and its covariance
   nlohmann-json3-dev   # JSON
   libmuparser-dev      # dimension expressions in part models
   libssl-dev           # SHA-256 of input files (libcrypto)

@@ -10,9 +10,10 @@ is a failure, so a new kind of file cannot slip through unvalidated: add a
 rule (and a schema) for it. Every violation is printed with the file and the
 JSON pointer of the offending value.
 
-The script also checks that each schema is a valid draft 2020-12 schema and
+The script also checks that each schema is a valid draft 2020-12 schema,
 that a few deliberately broken documents (a misspelled key, a wrong type, a
-key that does not belong, ...) are rejected, so the test can fail.
+key that does not belong, ...) are rejected, so the test can fail, and that
+documents using optional keys no shipped file uses (tolerances) are accepted.
 
 Prints "N passed, M failed" last; exits 1 if anything failed. Needs the
 Python package jsonschema (Debian: python3-jsonschema, 4.10 or later).
@@ -203,6 +204,41 @@ def broken_documents(root):
     d = read("examples/calibrate_prism_b.json")
     d["material"] = "aluminium_60kev.json"
     cases.append(("part calibration: material given", "calibrate_part", d, "/material"))
+
+    d = copy.deepcopy(job)
+    d["tolerances"] = {"width": {"nominal": 20.98, "lower": -0.02}}
+    cases.append(("job: tolerance without upper", "job", d, "/tolerances/width"))
+
+    d = read("parts/prism_jaw.json")
+    d["dimensions"][0]["tolerance"] = {"nominal": 21.0, "lower": -0.05, "upper": 0.05}
+    cases.append(("part model: tolerance with a nominal (the dimension's)", "part_model", d,
+                  "/dimensions/0/tolerance/nominal"))
+
+    d = read("examples/calibrate_prism_b.json")
+    d["tolerances"] = {"size_x": {"lower": -0.1, "upper": 0.1}}
+    cases.append(("part calibration: tolerances given", "calibrate_part", d, "/tolerances"))
+    return cases
+
+
+def accepted_documents(root):
+    """(label, schema, document): documents with optional keys that no
+    shipped file uses, which must pass."""
+    def read(relative):
+        return load_json(root / relative)
+
+    cases = []
+    d = read("examples/prism_a_small_job.json")
+    d["tolerances"] = {"width": {"nominal": 20.98, "lower": -0.02, "upper": 0.02},
+                       "thickness": {"lower": 0.01, "upper": 0.05}}
+    cases.append(("job: tolerances", "job", d))
+
+    d = read("examples/study_prism_a.json")
+    d["tolerances"] = {"width": {"lower": -0.02, "upper": 0.02}}
+    cases.append(("study: tolerances, passed to every run's job", "study", d))
+
+    d = read("parts/prism_jaw.json")
+    d["dimensions"][0]["tolerance"] = {"lower": -0.05, "upper": 0.05}
+    cases.append(("part model: a dimension's default tolerance", "part_model", d))
     return cases
 
 
@@ -287,6 +323,19 @@ def main():
             fail(f"{label}: rejected, but not at {expected}: {problems}")
         else:
             fail(f"{label}: accepted by {name}.schema.json")
+
+    # Optional keys no shipped file uses must pass.
+    try:
+        accepted = accepted_documents(root)
+    except (OSError, KeyError, ValueError) as e:
+        accepted = []
+        fail(f"cannot build the accepted documents from the shipped files: {e!r}")
+    for label, name, document in accepted:
+        problems = violations(validator(name), document)
+        if problems:
+            fail(f"{label}: rejected by {name}.schema.json: {problems}")
+        else:
+            ok(f"accepted: {label}")
 
     print(f"{passed} passed, {failed} failed")
     return 1 if failed else 0

@@ -69,7 +69,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("render")) xgauge::cli::runRender(render);
     if (app.got_subcommand("simulate")) xgauge::cli::runSimulate(simulate);
     if (app.got_subcommand("normalize")) xgauge::cli::runNormalize(normalize);
-    if (app.got_subcommand("measure")) xgauge::cli::runMeasure(measure);
+    if (app.got_subcommand("measure")) return xgauge::cli::runMeasure(measure);
     if (app.got_subcommand("material")) xgauge::cli::runMaterial(material);
     if (app.got_subcommand("study")) xgauge::cli::runStudyCommand(study);
     if (app.got_subcommand("calibrate")) xgauge::cli::runCalibrate(app, calibrate_wedge, calibrate_part);

@@ -27,7 +27,7 @@ void addMeasureCommand(CLI::App& app, MeasureArguments& args) {
   cmd->add_option("--truth", args.truth, "A virtual lab's truth.json: also print the errors");
 }
 
-void runMeasure(const MeasureArguments& args) {
+int runMeasure(const MeasureArguments& args) {
   checkOutputFolder(args.output);
   const MeasurementInputs inputs = loadMeasurementInputs(args.job);
   std::optional<DatasetTruth> truth;
@@ -41,15 +41,36 @@ void runMeasure(const MeasureArguments& args) {
   ForwardModel model(inputs);
   const MeasurementResult result = measure(model, model.start());
 
-  std::string table = fmt::format("{:<18} {:>10}", "dimension", "measured");
+  bool toleranced = false;
+  std::vector<Decision> decisions;
+  for (const auto& d : result.dimensions)
+    if (d.decision) toleranced = true, decisions.push_back(*d.decision);
+  std::string table = fmt::format("{:<18} {:>10} {:>9}", "dimension", "measured", "U (k=2)");
+  if (toleranced) table += fmt::format(" {:>19} {:<16}", "tolerance zone", " verdict");
   if (truth) table += fmt::format(" {:>10} {:>10}", "true", "error");
   table += "\n";
   for (const auto& d : result.dimensions) {
-    table += fmt::format("{:<18} {:>10.4f}", d.name + (d.free ? "" : " (fixed)"), d.value);
+    table += fmt::format("{:<18} {:>10.4f} {:>9}", d.name + (d.free ? "" : " (fixed)"), d.value,
+                         !d.free ? "" : d.expanded_uncertainty ? fmt::format("{:.4f}", *d.expanded_uncertainty)
+                                                              : "n/a");
+    if (toleranced)
+      table += d.tolerance ? fmt::format(" [{:>8.4f},{:>9.4f}]  {:<16}", d.tolerance->lowerLimit(),
+                                         d.tolerance->upperLimit(),
+                                         std::string(verdictName(d.decision->verdict)))
+                           : fmt::format(" {:>19} {:<16}", "", "");
     if (truth && truth->dimensions.count(d.name))
       table += fmt::format(" {:>10.4f} {:>+10.4f}", truth->dimensions.at(d.name),
                            d.value - truth->dimensions.at(d.name));
     table += "\n";
+  }
+  for (const auto& c : result.uncertainty.combinations)
+    table += fmt::format("{:<18} {:>10.4f} {:>9.4f}  (measurable combination of dimensions that are "
+                         "not determined alone)\n",
+                         c.expression, c.value, c.expanded);
+  if (toleranced) table += fmt::format("Verdicts: {}.\n", kDecisionRule);
+  if (!result.check.warnings.empty()) {
+    table += fmt::format("{} warning(s):\n", result.check.warnings.size());
+    for (const auto& w : result.check.warnings) table += "  - " + w + "\n";
   }
   std::fputs(table.c_str(), stdout);
   spdlog::info("{} evaluations in {:.1f} s; final loss {:.6g}", result.evaluations, result.seconds,
@@ -60,6 +81,7 @@ void runMeasure(const MeasureArguments& args) {
   writeFileAtomically(std::filesystem::path(args.output) / "measure.log", log.str() + table);
   outputs.commit();
   spdlog::info("wrote {}/result.json", args.output);
+  return exitCodeFor(decisions);
 }
 
 void addMaterialCommand(CLI::App& app, MaterialArguments& args) {

@@ -21,7 +21,9 @@ struct MaterialArguments {
 };
 
 void addMeasureCommand(CLI::App& app, MeasureArguments& args);
-void runMeasure(const MeasureArguments& args);
+// Returns the exit status (measure/tolerance.h: 0 conforms, 2 inconclusive,
+// 3 does not conform; errors throw).
+int runMeasure(const MeasureArguments& args);
 void addMaterialCommand(CLI::App& app, MaterialArguments& args);
 void runMaterial(const MaterialArguments& args);
 

@@ -273,5 +273,23 @@ TEST_F(Calibrate, KnownCuboidGivesBackTheMaterialItWasRenderedWith) {
   EXPECT_TRUE(fs::exists(dir_ / "out" / "poses" / "result.json"));
 }
 
+TEST_F(Calibrate, APartCalibrationTakesNoTolerances) {
+  // Refused before any other file is read.
+  std::ofstream(dir_ / "job.json") << R"({
+    "part": "part.json", "machine": "machine.json",
+    "tolerances": {"size_x": {"lower": -0.1, "upper": 0.1}},
+    "radiographs": [{"name": "a", "image": "a.tif", "white_region": [4, 4, 30, 30]}],
+    "pose_bounds": {"rotation_deg": [[0, 0], [0, 0], [0, 0]], "centre_mm": [[0, 0], [0, 0], [700, 700]]},
+    "calibration": {"initial": {"radiograph": "a", "region": [149, 149, 3, 3], "path_mm": 10}}})";
+  try {
+    PartCalibrationJob::load(dir_ / "job.json");
+    ADD_FAILURE() << "tolerances were accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.message(), "a calibration judges no part: leave \"tolerances\" out");
+    EXPECT_EQ(e.where().key_path, "/tolerances");
+    EXPECT_EQ(e.where().line, 3);
+  }
+}
+
 }  // namespace
 }  // namespace xgauge

@@ -104,6 +104,9 @@ PartCalibrationJob PartCalibrationJob::load(const std::filesystem::path& path) {
   PartCalibrationJob job;
   if (root.has("material"))
     root.at("material").fail("a calibration finds the material: leave \"material\" out");
+  // A job's tolerances would pass the measurement job's reader and be ignored.
+  if (root.has("tolerances"))
+    root.at("tolerances").fail("a calibration judges no part: leave \"tolerances\" out");
   job.inputs = std::make_shared<const MeasurementInputs>(loadMeasurementInputs(root, path, false));
   const ConfigNode c = root.at("calibration");
   job.terms = static_cast<int>(c.get<double>("terms", 3.0));

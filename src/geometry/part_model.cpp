@@ -123,6 +123,25 @@ std::string readName(const ConfigNode& item, std::set<std::string>& taken) {
   return name;
 }
 
+// A dimension's "tolerance": {"lower", "upper"} deviations from nominal.
+// A zone that misses [min, max] entirely is refused: no value the model can
+// take could conform, which is a slip (a limit in the wrong unit) rather than
+// a specification.
+DimensionTolerance readTolerance(const ConfigNode& node, const Dimension& dimension) {
+  DimensionTolerance tolerance;
+  tolerance.lower = node.get<double>("lower");
+  tolerance.upper = node.get<double>("upper");
+  if (!(tolerance.lower < tolerance.upper))
+    node.fail(fmt::format("lower ({}) must be below upper ({})", tolerance.lower, tolerance.upper));
+  const double low = dimension.nominal + tolerance.lower;
+  const double high = dimension.nominal + tolerance.upper;
+  if (high < dimension.min || low > dimension.max)
+    node.fail(fmt::format(
+        "the tolerance zone [{}, {}] {} lies outside the dimension's [min, max] = [{}, {}]", low,
+        high, dimension.unit, dimension.min, dimension.max));
+  return tolerance;
+}
+
 }  // namespace
 
 PartModel::PartModel(std::shared_ptr<const Definition> definition,
@@ -181,6 +200,8 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
       if (dimension.nominal < dimension.min || dimension.nominal > dimension.max)
         item.fail(fmt::format("nominal {} lies outside [min, max] = [{}, {}]", dimension.nominal,
                               dimension.min, dimension.max));
+      if (const auto tolerance = item.find("tolerance"))
+        dimension.tolerance = readTolerance(*tolerance, dimension);
       d.symbols.variables.push_back(dimension.name);
       d.dimensions.push_back(std::move(dimension));
     }
@@ -288,10 +309,6 @@ std::vector<double> PartModel::values(const std::map<std::string, double>& overr
   return result;
 }
 
-namespace {
-
-}  // namespace
-
 // Why a part model cannot take some values: the message and where the rule
 // that is broken was written.
 struct PartModel::Invalidity {
@@ -330,8 +347,7 @@ std::optional<PartModel::Invalidity> PartModel::findInvalidity(
 }
 
 void PartModel::validate(std::span<const double> values) const {
-  if (const auto bad = findInvalidity(values))
-    throw Error(bad->message, bad->where);
+  if (const auto bad = findInvalidity(values)) throw Error(bad->message, bad->where);
 }
 
 std::optional<std::string> PartModel::invalidity(std::span<const double> values) const {
@@ -340,7 +356,7 @@ std::optional<std::string> PartModel::invalidity(std::span<const double> values)
 }
 
 std::optional<PartModel::Invalidity> PartModel::findFold(std::span<const double> values,
-                                                        std::vector<Vec3>& out) const {
+                                                         std::vector<Vec3>& out) const {
   const Definition& d = *definition_;
   XG_CHECK(values.size() == d.dimensions.size(), "{} values for {} dimensions", values.size(),
            d.dimensions.size());

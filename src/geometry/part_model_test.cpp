@@ -6,6 +6,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <numbers>
 
 namespace xgauge {
@@ -238,10 +239,63 @@ TEST(PartModel, BadDeclarations) {
   expectLoadError(replaced(kNotchedBar, R"({"name": "L")", R"({"name": "sin")"),
                   "'sin' is the name of a built-in function or constant", "/constants/0/name");
   expectLoadError(replaced(kNotchedBar, R"("type": "extrusion")", R"("type": "sweep")"),
-                  "unknown shape type 'sweep' (known: union, difference, intersection, extrusion, revolution, box, cylinder, mesh, stl)",
+                  "unknown shape type 'sweep' (known: union, difference, intersection, extrusion, "
+                  "revolution, box, cylinder, mesh, stl)",
                   "/shape/type");
   expectLoadError(replaced(kNotchedBar, R"("axis": "y")", R"("axis": "x")"),
                   "the extrusion axis must be the one not in the plane, 'y'", "/shape/axis");
+}
+
+// The drawing's default tolerance of a dimension (measure/tolerance.h).
+std::string withWidthTolerance(const std::string& tolerance) {
+  return replaced(kNotchedBar, R"("thesis": "θ1")", R"("thesis": "θ1", "tolerance": )" + tolerance);
+}
+
+TEST(PartModel, ReadsAnOptionalTolerancePerDimension) {
+  const PartModel model = loadText(withWidthTolerance(R"({"lower": -0.05, "upper": 0.125})"));
+  ASSERT_TRUE(model.dimensions()[0].tolerance.has_value());
+  EXPECT_EQ(model.dimensions()[0].tolerance->lower, -0.05);
+  EXPECT_EQ(model.dimensions()[0].tolerance->upper, 0.125);
+  EXPECT_FALSE(model.dimensions()[1].tolerance.has_value());
+  // Asymmetric zones on one side of the nominal are specifications too.
+  const PartModel above = loadText(withWidthTolerance(R"({"lower": 0.25, "upper": 0.5})"));
+  EXPECT_EQ(above.dimensions()[0].tolerance->lower, 0.25);
+}
+
+TEST(PartModel, BadTolerancesNameTheirKey) {
+  expectLoadError(withWidthTolerance(R"({"lower": 0.05, "upper": -0.05})"),
+                  "lower (0.05) must be below upper (-0.05)", "/dimensions/0/tolerance");
+  expectLoadError(withWidthTolerance(R"({"lower": 0.05, "upper": 0.05})"),
+                  "lower (0.05) must be below upper (0.05)", "/dimensions/0/tolerance");
+  expectLoadError(withWidthTolerance(R"({"lower": -0.05})"), "missing key 'upper'",
+                  "/dimensions/0/tolerance");
+  expectLoadError(withWidthTolerance(R"({"lower": -0.05, "upper": 0.05, "uper": 0.05})"),
+                  "unknown key 'uper'; did you mean 'upper'?", "/dimensions/0/tolerance/uper");
+  // The part model's nominal is the dimension's: a tolerance here takes none.
+  expectLoadError(withWidthTolerance(R"({"nominal": 10, "lower": -0.05, "upper": 0.05})"),
+                  "unknown key 'nominal'", "/dimensions/0/tolerance/nominal");
+  expectLoadError(withWidthTolerance("0.05"), "expected an object", "/dimensions/0/tolerance");
+  expectLoadError(withWidthTolerance(R"({"lower": "-0.05", "upper": 0.05})"),
+                  "expected a number, got \"-0.05\"", "/dimensions/0/tolerance/lower");
+  // Width 10 in [5, 20]: a zone [25, 30] (a slip of unit or sign) cannot be met.
+  expectLoadError(
+      withWidthTolerance(R"({"lower": 15, "upper": 20})"),
+      "the tolerance zone [25, 30] mm lies outside the dimension's [min, max] = [5, 20]",
+      "/dimensions/0/tolerance");
+}
+
+TEST(PartModel, ANonFiniteToleranceIsRefused) {
+  // JSON text cannot hold a NaN; a document built in memory can.
+  nlohmann::json document =
+      nlohmann::json::parse(withWidthTolerance(R"({"lower": -0.05, "upper": 0.05})"));
+  document["dimensions"][0]["tolerance"]["lower"] = std::nan("");
+  try {
+    PartModel::fromConfig(ConfigNode::fromJson(document, "part.json"), "part.json");
+    FAIL() << "a NaN tolerance was accepted";
+  } catch (const Error& e) {
+    EXPECT_EQ(e.message(), "expected a finite number");
+    EXPECT_EQ(e.where().key_path, "/dimensions/0/tolerance/lower");
+  }
 }
 
 TEST(PartModel, SelfIntersectingNominalProfile) {

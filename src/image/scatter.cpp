@@ -9,6 +9,10 @@ ScatterModel ScatterModel::fromConfig(const ConfigNode& node) {
   ScatterModel out;
   out.weight = node.at("weight").number(0.0, 0.9);
   out.sigma_mm = node.at("sigma_mm").number(0.01, 1e4);
+  out.weight_uncertainty = 0.05 * out.weight;
+  out.sigma_uncertainty_mm = 0.1 * out.sigma_mm;
+  if (auto u = node.find("weight_uncertainty")) out.weight_uncertainty = u->number(0.0, 0.5);
+  if (auto u = node.find("sigma_uncertainty_mm")) out.sigma_uncertainty_mm = u->number(0.0, 1e4);
   return out;
 }
 

@@ -5,6 +5,7 @@
 #include "xgauge/core/progress.h"
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/image/tiff.h"
+#include "xgauge/lab/defect.h"
 #include "xgauge/lab/detector.h"
 #include "xgauge/lab/random.h"
 #include "xgauge/lab/spectrum.h"
@@ -48,7 +49,8 @@ struct Acquisition {
       a.scatter_sigma_px = scatter->at("sigma_px").number(0.1, 1e5);
     }
     a.flat_frames = static_cast<int>(node.get<double>("flat_frames", 16.0));
-    if (a.flat_frames < 1 || a.flat_frames > 1024) node.at("flat_frames").fail("expected 1 to 1024");
+    if (a.flat_frames < 1 || a.flat_frames > 1024)
+      node.at("flat_frames").fail("expected 1 to 1024");
     if (auto noise = node.find("noise")) a.noise = DetectorNoiseModel::fromConfig(*noise);
     a.noise.validate();
     return a;
@@ -57,13 +59,14 @@ struct Acquisition {
 
 // Noise-free intensity of one shot: area sampling, and the focal spot as
 // jittered source points (the source moved by s is the part moved by -s with
-// the principal point moved by s).
-Image renderShot(const Machine& machine, const TriangleMesh& mesh, const Pose& pose,
-                 const TransmissionTable& table, const Acquisition& acquisition, uint64_t seed,
-                 uint64_t shot_index) {
+// the principal point moved by s). Voids move with the part.
+Image renderShot(const Machine& machine, const TriangleMesh& mesh, std::span<const Defect> defects,
+                 const Pose& pose, const TransmissionTable& table, const Acquisition& acquisition,
+                 uint64_t seed, uint64_t shot_index) {
   RenderOptions options;
   options.samples_per_axis = acquisition.area_samples;
   std::vector<Vec3> world;
+  std::vector<WorldSphere> voids(defects.size());
   const int spots = acquisition.focal_spot_fwhm_mm > 0 ? acquisition.focal_spot_samples : 1;
   const double sigma_mm = acquisition.focal_spot_fwhm_mm / (2.0 * std::sqrt(2.0 * std::log(2.0)));
   SplitMix64 rng = SplitMix64::stream(seed, kFocalSpotStream, shot_index);
@@ -77,8 +80,14 @@ Image renderShot(const Machine& machine, const TriangleMesh& mesh, const Pose& p
     Pose moved = pose;
     moved.translation_mm -= Vec3(sx, sy, 0.0);
     poseVertices(moved, mesh.vertices, world);
-    renderIntensity(shifted, {world, mesh.triangles, mesh.csg.get()}, table, options,
-                    k == 0 ? sum : one);
+    const WorldMesh posed{world, mesh.triangles, mesh.csg.get()};
+    Image& target = k == 0 ? sum : one;
+    renderIntensity(shifted, posed, table, options, target);
+    if (!voids.empty()) {
+      for (size_t d = 0; d < defects.size(); ++d)
+        voids[d] = {moved.apply(defects[d].centre_part_mm), defects[d].radiusMm()};
+      carveVoids(shifted, posed, voids, table, acquisition.area_samples, target);
+    }
     if (k > 0) {
       auto s = sum.pixels();
       auto o = one.pixels();
@@ -103,15 +112,17 @@ PixelRect findWhiteRegion(const ImageT<uint8_t>& shadowed, const Machine& machin
       const PixelRect r{x, y, side, side};
       if (x == xs[2] && y == ys[2]) continue;  // not the centre
       // Clear of any shadow by a further `margin` all around.
-      const PixelRect guard = PixelRect{x - margin, y - margin, side + 2 * margin, side + 2 * margin}
-                                  .intersect(machine.detectorRect());
+      const PixelRect guard =
+          PixelRect{x - margin, y - margin, side + 2 * margin, side + 2 * margin}.intersect(
+              machine.detectorRect());
       bool clear = true;
       for (int v = guard.y; v < guard.bottom() && clear; ++v)
         for (int u = guard.x; u < guard.right() && clear; ++u) clear = shadowed(u, v) == 0;
       if (clear) return r;
     }
-  fail("no open-beam region found for normalization: the part's shadow covers every corner; "
-       "give white_region in the recipe");
+  fail(
+      "no open-beam region found for normalization: the part's shadow covers every corner; "
+      "give white_region in the recipe");
 }
 
 nlohmann::json transmissionJson(const PolychromaticMaterial& material, double max_path_mm) {
@@ -121,8 +132,41 @@ nlohmann::json transmissionJson(const PolychromaticMaterial& material, double ma
     path.push_back(i * step);
     value.push_back(material.transmission(i * step));
   }
-  return {{"path_mm", path}, {"transmission", value},
+  return {{"path_mm", path},
+          {"transmission", value},
           {"note", "polychromatic transmission of the part material for this beam and detector"}};
+}
+
+// truth.json's `defects`: each as the recipe gives it, in the part frame.
+nlohmann::json defectsJson(std::span<const Defect> defects) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const Defect& d : defects) {
+    const Vec3& c = d.centre_part_mm;
+    out.push_back(
+        {{"type", d.type}, {"centre_mm", {c.x(), c.y(), c.z()}}, {"diameter_mm", d.diameter_mm}});
+  }
+  return out;
+}
+
+// A shot's `defects`, in the order of truth.json's `defects`: where each one
+// is in the world and where its centre projects from the focal spot's centre
+// (continuous pixel coordinates), with the diameter of its shadow to first
+// order (the diameter magnified at the centre's depth).
+nlohmann::json defectsInShotJson(const Machine& machine, std::span<const Defect> defects,
+                                 const Pose& pose) {
+  nlohmann::json out = nlohmann::json::array();
+  for (const Defect& d : defects) {
+    const Vec3 c = pose.apply(d.centre_part_mm);
+    const Vec2 px = machine.project(c);
+    const double magnification =
+        machine.source_detector_distance_mm / (machine.source_detector_distance_mm - c.z());
+    out.push_back({{"centre_world_mm", {c.x(), c.y(), c.z()}},
+                   {"centre_px", {px.x(), px.y()}},
+                   {"diameter_px",
+                    {d.diameter_mm * magnification / machine.pitch_u_mm,
+                     d.diameter_mm * magnification / machine.pitch_v_mm}}});
+  }
+  return out;
 }
 
 }  // namespace
@@ -177,7 +221,8 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
     const auto shot_start = std::chrono::steady_clock::now();
     const ShotPlan& shot = recipe.shots[static_cast<size_t>(i)];
     const uint64_t index = static_cast<uint64_t>(i) + 1;
-    Image intensity = renderShot(machine, mesh, shot.pose, table, acquisition, recipe.seed, index);
+    Image intensity = renderShot(machine, mesh, recipe.defects, shot.pose, table, acquisition,
+                                 recipe.seed, index);
     {
       auto p = intensity.pixels();
       auto s = shadowed.pixels();
@@ -191,20 +236,26 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
     writeTiff(folder / (shot.name + ".tif"), exposure.raw_adu,
               acquisition.noise.quantize_16bit ? TiffFormat::kUInt16 : TiffFormat::kFloat32);
     previous_signal = std::move(exposure.signal);
-    shot_seconds += std::chrono::duration<double>(std::chrono::steady_clock::now() - shot_start).count();
+    shot_seconds +=
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - shot_start).count();
     progress.advance();
   }
   progress.finish();
 
   // Ground truth, last: its presence marks a complete dataset.
-  const PixelRect white = recipe.white_region ? *recipe.white_region : findWhiteRegion(shadowed, machine);
+  const PixelRect white =
+      recipe.white_region ? *recipe.white_region : findWhiteRegion(shadowed, machine);
   if (!machine.detectorRect().contains(white))
-    fail("white_region {} lies outside the {}x{} detector", toString(white), machine.columns, machine.rows);
+    fail("white_region {} lies outside the {}x{} detector", toString(white), machine.columns,
+         machine.rows);
   nlohmann::json dims = nlohmann::json::object();
-  for (size_t k = 0; k < model.dimensions().size(); ++k) dims[model.dimensions()[k].name] = values[k];
+  for (size_t k = 0; k < model.dimensions().size(); ++k)
+    dims[model.dimensions()[k].name] = values[k];
   nlohmann::json shots = nlohmann::json::array();
   for (const ShotPlan& shot : recipe.shots) {
-    nlohmann::json s = {{"name", shot.name}, {"file", shot.name + ".tif"}, {"pattern", shot.pattern},
+    nlohmann::json s = {{"name", shot.name},
+                        {"file", shot.name + ".tif"},
+                        {"pattern", shot.pattern},
                         {"pose", poseToJson(shot.pose)}};
     if (shot.pattern == "translated") {
       s["reference"] = shot.reference;
@@ -212,27 +263,33 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
       s["axis"] = {shot.axis.x(), shot.axis.y(), shot.axis.z()};
     }
     if (shot.pattern == "rotated") s["nominal_angle_deg"] = shot.nominal_angle_deg;
+    if (!recipe.defects.empty())
+      s["defects"] = defectsInShotJson(machine, recipe.defects, shot.pose);
     shots.push_back(s);
   }
   nlohmann::json dead = nlohmann::json::array();
   for (int v = 0; v < pattern.height(); ++v)
     for (int u = 0; u < pattern.width(); ++u)
       if (pattern.dead(u, v)) dead.push_back({u, v});
-  const nlohmann::json truth = {
+  nlohmann::json truth = {
       {"recipe", recipe.file.string()},
       {"description", recipe.description},
       {"seed", recipe.seed},
       {"machine", machine.toJson()},
       {"beam", beam.toJson()},
-      {"material", {{"compound", material_layer.compound}, {"density_g_cm3", material_layer.density_g_cm3}}},
+      {"material",
+       {{"compound", material_layer.compound}, {"density_g_cm3", material_layer.density_g_cm3}}},
       {"detector", acquisition.noise.toJson()},
-      {"part", {{"model", std::filesystem::weakly_canonical(recipe.part_file).string()}, {"dimensions", dims}}},
+      {"part",
+       {{"model", std::filesystem::weakly_canonical(recipe.part_file).string()},
+        {"dimensions", dims}}},
       {"white_region", {white.x, white.y, white.width, white.height}},
       {"dark", "dark.tif"},
       {"flat", "flat.tif"},
       {"dead_pixels", dead},
       {"transmission", transmissionJson(material, max_path_mm)},
       {"shots", shots}};
+  if (!recipe.defects.empty()) truth["defects"] = defectsJson(recipe.defects);
   writeFileAtomically(folder / "truth.json", truth.dump(2) + "\n");
 
   DatasetReport report;

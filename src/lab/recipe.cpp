@@ -92,7 +92,8 @@ std::vector<ShotPlan> planShots(const ConfigNode& shots, const Vec3& pivot_part_
   if (plan.empty()) shots.fail("no shots: give translations, rotations or extra");
   for (size_t i = 0; i < plan.size(); ++i)
     for (size_t j = 0; j < i; ++j)
-      if (plan[i].name == plan[j].name) shots.fail(fmt::format("two shots named '{}'", plan[i].name));
+      if (plan[i].name == plan[j].name)
+        shots.fail(fmt::format("two shots named '{}'", plan[i].name));
   return plan;
 }
 
@@ -120,9 +121,10 @@ Recipe Recipe::load(const std::filesystem::path& path) {
   }
 
   const ConfigNode shots = root.at("shots");
-  const BoundingBox box = boundingBox(model.mesh(values));
-  const Vec3 pivot = shots.has("pivot_mm") ? vec3(shots.at("pivot_mm"))
-                                            : Vec3(0.5 * (box.min_mm + box.max_mm));
+  const TriangleMesh mesh = model.mesh(values);
+  const BoundingBox box = boundingBox(mesh);
+  const Vec3 pivot =
+      shots.has("pivot_mm") ? vec3(shots.at("pivot_mm")) : Vec3(0.5 * (box.min_mm + box.max_mm));
   recipe.shots = planShots(shots, pivot, recipe.seed);
 
   if (auto white = root.find("white_region")) {
@@ -131,6 +133,7 @@ Recipe Recipe::load(const std::filesystem::path& path) {
       white->fail("expected [x, y, width, height] with a positive size");
     recipe.white_region = PixelRect{r[0], r[1], r[2], r[3]};
   }
+  if (auto defects = root.find("defects")) recipe.defects = readDefects(*defects, mesh);
   return recipe;
 }
 

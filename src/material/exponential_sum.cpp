@@ -26,6 +26,8 @@ ExponentialSum::ExponentialSum(std::vector<ExponentialTerm> terms, std::string d
 ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
   const std::string model = node.get<std::string>("model");
   const std::string description = node.get<std::string>("description", "");
+  double uncertainty = kDefaultTransmissionUncertainty;
+  if (auto u = node.find("uncertainty")) uncertainty = u->at("transmission").number(0.0, 0.5);
   try {
     if (model == "exponential_sum") {
       const ConfigNode list = node.at("terms");
@@ -40,16 +42,20 @@ ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
                       [](const ExponentialTerm& t) { return t.mu_per_mm == 0.0; }))
         list.fail("every mu_per_mm is 0: the material would not attenuate, and no dimension "
                   "could be measured");
-      return ExponentialSum(std::move(terms), description);
+      ExponentialSum out(std::move(terms), description);
+      out.transmission_uncertainty_ = uncertainty;
+      return out;
     }
     if (model == "monochromatic") {
       const std::string compound = node.get<std::string>("compound");
       const double density = node.at("density_g_cm3").number(1e-6, 30.0);
       const double energy = node.at("energy_kev").number(1.0, 1000.0);
-      return ExponentialSum({{1.0, linearAttenuationPerMm(compound, density, energy)}},
-                            description.empty()
-                                ? fmt::format("{} ({} g/cm^3) at {} keV", compound, density, energy)
-                                : description);
+      ExponentialSum out({{1.0, linearAttenuationPerMm(compound, density, energy)}},
+                         description.empty()
+                             ? fmt::format("{} ({} g/cm^3) at {} keV", compound, density, energy)
+                             : description);
+      out.transmission_uncertainty_ = uncertainty;
+      return out;
     }
   } catch (const Error& e) {
     if (!e.where().file.empty()) throw;
@@ -71,6 +77,15 @@ nlohmann::json ExponentialSum::toJson() const {
   for (const auto& t : terms_) terms.push_back({{"weight", t.weight}, {"mu_per_mm", t.mu_per_mm}});
   nlohmann::json out = {{"model", "exponential_sum"}, {"terms", terms}};
   if (!description_.empty()) out["description"] = description_;
+  out["uncertainty"] = {{"transmission", transmission_uncertainty_}};
+  return out;
+}
+
+ExponentialSum ExponentialSum::withScaledRates(double relative) const {
+  std::vector<ExponentialTerm> terms = terms_;
+  for (auto& t : terms) t.mu_per_mm *= 1.0 + relative;
+  ExponentialSum out(std::move(terms), description_);
+  out.transmission_uncertainty_ = transmission_uncertainty_;
   return out;
 }
 

@@ -108,9 +108,9 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
     for (const auto& [name, value] : job.fixed_dimensions) {
       const Dimension& d = model.dimensions()[static_cast<size_t>(model.dimensionIndex(name))];
       if (value < d.min || value > d.max)
-        dims->at("fixed").at(name).fail(fmt::format(
-            "fixed value {} lies outside the part model's bounds [{}, {}] {}", value, d.min, d.max,
-            d.unit));
+        dims->at("fixed").at(name).fail(
+            fmt::format("fixed value {} lies outside the part model's bounds [{}, {}] {}", value,
+                        d.min, d.max, d.unit));
       for (const char* key : {"start", "bounds"})
         if (auto node = dims->find(key); node && node->has(name))
           node->at(name).fail(fmt::format("'{}' is fixed; a {} does not apply to it", name,
@@ -139,11 +139,37 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
     if (const auto why = model.invalidity(values)) {
       const ConfigNode dims = root.has("dimensions") ? root.at("dimensions") : root;
       dims.fail(fmt::format("the start values ({}) do not make a valid part: {}",
-                            root.has("dimensions") ? "the nominal values with the job's start and fixed values"
-                                                   : "the part model's nominal values",
+                            root.has("dimensions")
+                                ? "the nominal values with the job's start and fixed values"
+                                : "the part model's nominal values",
                             *why));
     }
   }
+
+  // Tolerances, of measured dimensions only (a fixed one has no measured
+  // value to judge). As in a part model, a zone that misses the model's
+  // [min, max] entirely is a slip, not a specification.
+  if (auto tolerances = root.find("tolerances"))
+    for (const auto& name : tolerances->keys()) {
+      const ConfigNode node = tolerances->at(name);
+      const auto index = static_cast<size_t>(known(node, name));
+      if (!is_free[index])
+        node.fail(
+            fmt::format("'{}' is not a free dimension of this job: a tolerance applies to measured "
+                        "dimensions only",
+                        name));
+      const Dimension& d = model.dimensions()[index];
+      Tolerance tolerance{node.get<double>("nominal", d.nominal), node.get<double>("lower"),
+                          node.get<double>("upper"), "job"};
+      if (!(tolerance.lower < tolerance.upper))
+        node.fail(
+            fmt::format("lower ({}) must be below upper ({})", tolerance.lower, tolerance.upper));
+      if (tolerance.upperLimit() < d.min || tolerance.lowerLimit() > d.max)
+        node.fail(fmt::format(
+            "the tolerance zone [{}, {}] {} lies outside the part model's [min, max] = [{}, {}]",
+            tolerance.lowerLimit(), tolerance.upperLimit(), d.unit, d.min, d.max));
+      job.tolerances[name] = std::move(tolerance);
+    }
 
   if (auto scatter = root.find("scatter")) job.scatter = ScatterModel::fromConfig(*scatter);
 
@@ -201,12 +227,14 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
   const std::string schedule = root.get<std::string>("schedule", "default");
   const auto kind = scheduleKindFromName(schedule);
   if (!kind)
-    root.at("schedule").fail(fmt::format("unknown schedule '{}' (known: default, thesis)", schedule));
+    root.at("schedule")
+        .fail(fmt::format("unknown schedule '{}' (known: default, thesis)", schedule));
   job.schedule = *kind;
   const std::string loss = root.get<std::string>("loss", "l1");
   if (loss != "l1" && loss != "l2") root.at("loss").fail("expected \"l1\" or \"l2\"");
   job.loss = lossKindFromName(loss);
-  if (auto seed = root.find("seed")) job.seed = static_cast<uint64_t>(seed->integer(0, int64_t{1} << 53));
+  if (auto seed = root.find("seed"))
+    job.seed = static_cast<uint64_t>(seed->integer(0, int64_t{1} << 53));
   return job;
 }
 

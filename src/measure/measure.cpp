@@ -1,5 +1,8 @@
 #include "xgauge/measure/measure.h"
 
+#include "budget.h"
+#include "checks.h"
+#include "least_squares.h"
 #include "stages.h"
 #include "xgauge/measure/model.h"
 #include "xgauge/measure/schedule.h"
@@ -178,10 +181,56 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
   }
   const LeastSquaresStage& ls = schedule.least_squares;
   if (ls.enabled)
-    runner.report(refineLeastSquares(model, theta, all, every_radiograph,
-                                     model.levelForWidth(ls.min_width_px), ls.samples,
-                                     ls.max_iterations,
-                                     model.job().loss == LossKind::kMeanAbsolute));
+    runner.report(solveLeastSquares(model, theta, all, every_radiograph,
+                                    model.levelForWidth(ls.min_width_px), ls.samples,
+                                    ls.max_iterations,
+                                    model.job().loss == LossKind::kMeanAbsolute));
+}
+
+// The uncertainty budget and the self-checks, from the residuals and their
+// Jacobian at the solution, on the least-squares stage's level.
+void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementResult& result) {
+  const auto start = std::chrono::steady_clock::now();
+  const LeastSquaresStage& ls = scheduleFor(model.job().schedule).least_squares;
+  const int level = model.levelForWidth(ls.min_width_px);
+  std::vector<int> every_radiograph;
+  for (int r = 0; r < model.radiographCount(); ++r) every_radiograph.push_back(r);
+  const bool robust = model.job().loss == LossKind::kMeanAbsolute;
+  LinearizedFit fit;
+  if (!linearize(model, theta, model.jointIndices(),
+                 residualSegments(model, theta, every_radiograph, level, ls.samples, robust), level,
+                 ls.samples, fit)) {
+    result.check.warnings.push_back(
+        "the solution lies so close to what cannot be simulated that its uncertainty could not "
+        "be estimated");
+    return;
+  }
+  result.uncertainty = estimateUncertainty(model, theta, fit);
+  result.check = checkMeasurement(model, theta, fit);
+  for (const std::string& note : result.uncertainty.notes) spdlog::info("uncertainty: {}", note);
+  for (const std::string& warning : result.check.warnings) spdlog::warn("{}", warning);
+  spdlog::info("uncertainty budget and self-checks in {:.2f} s",
+               std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+}
+
+// Each free dimension's U from the budget, and its verdict where it has a
+// tolerance (measure/tolerance.h).
+void decideConformity(const ForwardModel& model, MeasurementResult& result) {
+  const std::map<std::string, Tolerance> tolerances = tolerancesFor(model.job(), model.part());
+  for (MeasuredDimension& d : result.dimensions) {
+    if (!d.free) continue;
+    for (const DimensionUncertainty& u : result.uncertainty.dimensions)
+      if (u.name == d.name && u.identifiable) d.expanded_uncertainty = u.expanded;
+    const auto t = tolerances.find(d.name);
+    if (t == tolerances.end()) continue;
+    d.tolerance = t->second;
+    d.decision = decide(d.value, d.expanded_uncertainty.value_or(kInf), t->second);
+    if (d.decision->cannot_decide)
+      result.check.warnings.push_back(fmt::format(
+          "{}: U = {:.4f} exceeds a third of the tolerance ({:.4f}): this measurement cannot "
+          "reliably decide conformity",
+          d.name, d.expanded_uncertainty.value_or(kInf), t->second.width() / 3.0));
+  }
 }
 
 }  // namespace
@@ -229,10 +278,16 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
          job.file.string(), *why);
   const auto& dims = model.part().dimensions();
   const auto& free = model.freeDimensionIndices();
-  for (size_t i = 0; i < dims.size(); ++i)
-    result.dimensions.push_back(
-        {dims[i].name, theta[i],
-         std::find(free.begin(), free.end(), static_cast<int>(i)) != free.end(), dims[i].unit});
+  for (size_t i = 0; i < dims.size(); ++i) {
+    MeasuredDimension d;
+    d.name = dims[i].name;
+    d.value = theta[i];
+    d.free = std::find(free.begin(), free.end(), static_cast<int>(i)) != free.end();
+    d.unit = dims[i].unit;
+    result.dimensions.push_back(std::move(d));
+  }
+  assess(model, theta, result);
+  decideConformity(model, result);
   for (int r = 0; r < model.radiographCount(); ++r) {
     const int only[] = {r};
     const double loss = model.loss(theta, 0, 2, only).value_or(kInf);

@@ -4,8 +4,6 @@
 
 #include <spdlog/spdlog.h>
 
-#include <Eigen/Dense>
-
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -115,111 +113,6 @@ Vec2 shadowCentroid(const PreparedRadiograph& r, int level) {
   const double s = static_cast<double>(1 << level);
   if (!(sw > 0)) return {(roi.x + 0.5 * roi.width) * s, (roi.y + 0.5 * roi.height) * s};
   return {su / sw * s, sv / sw * s};
-}
-
-StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
-                               const std::vector<int>& indices, const std::vector<int>& radiographs,
-                               int level, int samples, int max_iterations, bool robust) {
-  const auto start = std::chrono::steady_clock::now();
-  StageReport report;
-  report.name = robust ? "joint, reweighted least squares" : "joint, least squares";
-  report.method = robust ? "levenberg_marquardt_irls" : "levenberg_marquardt";
-  report.level = level;
-  report.samples = samples;
-  const size_t n = indices.size();
-  std::vector<double> r, trial_r;
-  std::vector<double> weight;
-  auto reweight = [&](const std::vector<double>& v) {
-    weight.assign(v.size(), 1.0);
-    if (!robust || v.empty()) return;
-    std::vector<double> magnitude(v.size());
-    for (size_t m = 0; m < v.size(); ++m) magnitude[m] = std::abs(v[m]);
-    std::nth_element(magnitude.begin(), magnitude.begin() + static_cast<ptrdiff_t>(v.size() / 2),
-                     magnitude.end());
-    const double floor = std::max(1e-30, 0.1 * magnitude[v.size() / 2]);
-    for (size_t m = 0; m < v.size(); ++m) weight[m] = 1.0 / std::max(std::abs(v[m]), floor);
-  };
-  auto cost = [&](const std::vector<double>& v) {
-    double c = 0.0;
-    for (size_t m = 0; m < v.size(); ++m) c += weight[m] * v[m] * v[m];
-    return c;
-  };
-  if (!model.residuals(theta, level, samples, radiographs, r)) {
-    report.termination = "start point invalid";
-    return report;
-  }
-  ++report.evaluations;
-  reweight(r);
-  double current = cost(r);
-  report.loss_before = current;
-  double lambda = 1e-3;
-  Eigen::MatrixXd jacobian(static_cast<Eigen::Index>(r.size()), static_cast<Eigen::Index>(n));
-  report.termination = "iteration limit";
-  for (int iteration = 0; iteration < max_iterations; ++iteration) {
-    // Jacobian by forward differences.
-    for (size_t k = 0; k < n; ++k) {
-      const auto i = static_cast<size_t>(indices[k]);
-      const double h = 2e-3;  // mm or deg: small against the tolerances, large against noise
-      std::vector<double> shifted = theta;
-      shifted[i] = theta[i] + h <= model.upper()[i] ? theta[i] + h : theta[i] - h;
-      const double step = shifted[i] - theta[i];
-      if (!model.residuals(shifted, level, samples, radiographs, trial_r) ||
-          trial_r.size() != r.size()) {
-        report.termination = "jacobian at an invalid point";
-        iteration = max_iterations;
-        break;
-      }
-      ++report.evaluations;
-      for (size_t m = 0; m < r.size(); ++m)
-        jacobian(static_cast<Eigen::Index>(m), static_cast<Eigen::Index>(k)) =
-            (trial_r[m] - r[m]) / step;
-    }
-    if (iteration >= max_iterations) break;
-    const Eigen::Map<const Eigen::VectorXd> residual(r.data(), static_cast<Eigen::Index>(r.size()));
-    const Eigen::Map<const Eigen::VectorXd> w(weight.data(),
-                                              static_cast<Eigen::Index>(weight.size()));
-    const Eigen::MatrixXd weighted = w.asDiagonal() * jacobian;
-    const Eigen::MatrixXd normal = jacobian.transpose() * weighted;
-    const Eigen::VectorXd gradient = weighted.transpose() * residual;
-    bool improved = false;
-    for (int attempt = 0; attempt < 10 && !improved; ++attempt) {
-      Eigen::MatrixXd damped = normal;
-      damped.diagonal() += lambda * normal.diagonal().cwiseMax(1e-12);
-      const Eigen::VectorXd delta = damped.ldlt().solve(-gradient);
-      std::vector<double> candidate = theta;
-      for (size_t k = 0; k < n; ++k) {
-        const auto i = static_cast<size_t>(indices[k]);
-        candidate[i] = std::clamp(theta[i] + delta(static_cast<Eigen::Index>(k)), model.lower()[i],
-                                  model.upper()[i]);
-      }
-      ++report.evaluations;
-      if (model.residuals(candidate, level, samples, radiographs, trial_r) &&
-          cost(trial_r) < current) {
-        const double previous = current;
-        theta = candidate, r = trial_r, current = cost(r);
-        lambda = std::max(1e-9, lambda / 3.0);
-        improved = true;
-        const bool settled = previous - current < 1e-12 * previous;
-        if (robust) reweight(r), current = cost(r);
-        if (settled) {
-          report.termination = "converged (relative decrease below 1e-12)";
-          iteration = max_iterations;
-        }
-      } else {
-        lambda *= 4.0;
-      }
-    }
-    if (!improved) {
-      report.termination = "converged (no decreasing step)";
-      break;
-    }
-  }
-  report.loss_after = current;
-  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  spdlog::info("{}: {} {:.6g} -> {:.6g} in {} evaluations, {:.2f} s ({})", report.name,
-               robust ? "reweighted squared residuals" : "loss", report.loss_before,
-               report.loss_after, report.evaluations, report.seconds, report.termination);
-  return report;
 }
 
 }  // namespace xgauge

@@ -59,15 +59,4 @@ std::vector<std::vector<double>> distinctBest(
 // continuous pixel coordinates.
 Vec2 shadowCentroid(const PreparedRadiograph& r, int level);
 
-// Levenberg-Marquardt on the per-pixel residuals, for the final refinement:
-// where a derivative-free method crawls along a narrow valley (depth against
-// size against a translation's depth component), the Gauss-Newton step goes
-// straight down it. Forward-difference Jacobian with small physical steps;
-// bounds are kept by clamping. With `robust`, the L1 loss is minimised by
-// iteratively reweighted least squares: weights 1 / max(|r|, a tenth of the
-// median |r|), recomputed at every iteration.
-StageReport refineLeastSquares(ForwardModel& model, std::vector<double>& theta,
-                               const std::vector<int>& indices, const std::vector<int>& radiographs,
-                               int level, int samples, int max_iterations, bool robust);
-
 }  // namespace xgauge

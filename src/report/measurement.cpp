@@ -32,8 +32,67 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
 
   // result.json.
   nlohmann::json dims = nlohmann::json::array();
-  for (const auto& d : result.dimensions)
-    dims.push_back({{"name", d.name}, {"value_mm", d.value}, {"free", d.free}, {"unit", d.unit}});
+  for (const auto& d : result.dimensions) {
+    nlohmann::json item = {{"name", d.name}, {"value_mm", d.value}, {"free", d.free}, {"unit", d.unit}};
+    if (d.free) {
+      item["expanded_uncertainty"] =
+          d.expanded_uncertainty ? nlohmann::json(*d.expanded_uncertainty) : nlohmann::json(nullptr);
+      item["identifiable"] = d.expanded_uncertainty.has_value();
+    }
+    if (d.tolerance)
+      item["tolerance"] = {{"nominal", d.tolerance->nominal}, {"lower", d.tolerance->lower},
+                           {"upper", d.tolerance->upper}, {"source", d.tolerance->source}};
+    if (d.decision) {
+      item["verdict"] = std::string(verdictName(d.decision->verdict));
+      item["cannot_decide"] = d.decision->cannot_decide;
+    }
+    dims.push_back(std::move(item));
+  }
+  nlohmann::json budget = nlohmann::json::array();
+  for (const DimensionUncertainty& u : result.uncertainty.dimensions) {
+    nlohmann::json components = nlohmann::json::array();
+    for (const UncertaintyComponent& c : u.components)
+      components.push_back({{"name", c.name}, {"quantity", c.quantity},
+                            {"standard_uncertainty", c.standard_uncertainty}, {"unit", c.unit},
+                            {"sensitivity", c.sensitivity}, {"contribution", c.contribution}});
+    budget.push_back({{"name", u.name}, {"identifiable", u.identifiable},
+                      {"combined_standard_uncertainty", u.combined},
+                      {"expanded_uncertainty", u.identifiable ? nlohmann::json(u.expanded) : nlohmann::json(nullptr)},
+                      {"components", components}});
+  }
+  nlohmann::json combinations = nlohmann::json::array();
+  for (const MeasurableCombination& c : result.uncertainty.combinations) {
+    nlohmann::json terms = nlohmann::json::array();
+    for (const auto& [name, coefficient] : c.terms) terms.push_back({{"dimension", name}, {"coefficient", coefficient}});
+    combinations.push_back({{"expression", c.expression}, {"terms", terms}, {"value", c.value},
+                            {"expanded_uncertainty", c.expanded}});
+  }
+  const nlohmann::json uncertainty = {{"coverage_factor", result.uncertainty.coverage_factor},
+                                      {"method", "GUM (JCGM 100) linear propagation; docs/method.md"},
+                                      {"level", result.uncertainty.level},
+                                      {"pixels", result.uncertainty.pixels},
+                                      {"dimensions", budget},
+                                      {"combinations", combinations},
+                                      {"notes", result.uncertainty.notes}};
+  nlohmann::json regions = nlohmann::json::array();
+  for (const ResidualRegion& r : result.check.regions) {
+    nlohmann::json item = {{"radiograph", r.radiograph},
+                           {"centre_px", {r.centre_px.x(), r.centre_px.y()}},
+                           {"box_px", r.box_px},
+                           {"area_mm2", r.area_mm2},
+                           {"peak", r.peak},
+                           {"sigmas", r.sigmas},
+                           {"sign", r.sign}};
+    item["part_mm"] = r.part_mm ? nlohmann::json{r.part_mm->x(), r.part_mm->y(), r.part_mm->z()}
+                                : nlohmann::json(nullptr);
+    regions.push_back(std::move(item));
+  }
+  nlohmann::json fits = nlohmann::json::array();
+  for (const RadiographCheck& c : result.check.radiographs)
+    fits.push_back({{"name", c.name}, {"noise_sigma", c.noise_sigma},
+                    {"mean_abs_residual", c.mean_abs_residual}, {"misfit_ratio", c.misfit_ratio}});
+  bool toleranced = false;
+  for (const auto& d : result.dimensions) toleranced |= d.decision.has_value();
   nlohmann::json radiographs = nlohmann::json::array();
   for (size_t r = 0; r < result.radiographs.size(); ++r) {
     const auto& m = result.radiographs[r];
@@ -62,6 +121,11 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
                               {"schedule", scheduleName(job.schedule)},
                               {"loss", lossKindName(job.loss)},
                               {"dimensions", dims},
+                              {"decision_rule", toleranced ? nlohmann::json(std::string(kDecisionRule)) : nlohmann::json(nullptr)},
+                              {"uncertainty", uncertainty},
+                              {"warnings", result.check.warnings},
+                              {"residual_regions", regions},
+                              {"fit_checks", fits},
                               {"radiographs", radiographs},
                               {"total_loss", result.total_loss},
                               {"evaluations", result.evaluations},

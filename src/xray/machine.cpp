@@ -39,6 +39,12 @@ Machine Machine::fromConfig(const ConfigNode& node) {
     m.cy_px = 0.5 * m.rows;
   }
   m.description = node.get<std::string>("description", "");
+  if (auto u = node.find("uncertainty")) {
+    if (auto d = u->find("source_detector_distance_mm"))
+      m.source_detector_distance_uncertainty_mm = d->number(0.0, 1e3);
+    if (auto p = u->find("pixel_pitch_relative"))
+      m.pixel_pitch_uncertainty_relative = p->number(0.0, 0.1);
+  }
   return m;
 }
 
@@ -65,7 +71,10 @@ nlohmann::json Machine::toJson() const {
        {{"columns", columns},
         {"rows", rows},
         {"pixel_pitch_mm", {pitch_u_mm, pitch_v_mm}},
-        {"principal_point_px", {cx_px, cy_px}}}}};
+        {"principal_point_px", {cx_px, cy_px}}}},
+      {"uncertainty",
+       {{"source_detector_distance_mm", source_detector_distance_uncertainty_mm},
+        {"pixel_pitch_relative", pixel_pitch_uncertainty_relative}}}};
   if (!description.empty()) out["description"] = description;
   return out;
 }

@@ -11,7 +11,11 @@
 //   description    | what the part is, its frame and anything a reader needs
 //   dimensions     | array, in the order the model's values use:
 //                  |   {"name", "nominal", "min", "max", "unit": "mm" | "deg",
-//                  |    "description" (optional), "thesis" (optional, "θ8")}
+//                  |    "description" (optional), "thesis" (optional, "θ8"),
+//                  |    "tolerance" (optional): {"lower", "upper"}, the
+//                  |    drawing's default deviation limits from nominal in
+//                  |    the dimension's unit, lower < upper, the zone
+//                  |    overlapping [min, max] (measure/tolerance.h)}
 //                  | min <= nominal <= max, min < max. Absent for "stl".
 //   constants      | optional array of {"name", "value", "unit" (optional),
 //                  |   "description" (optional)}: fixed values such as L = 40
@@ -72,6 +76,14 @@
 
 namespace xgauge {
 
+// A drawing's tolerance of a dimension: the deviation limits from its
+// nominal, in its unit (lower < upper; e.g. -0.05 and +0.05, or +0.02 and
+// +0.08). Verdicts against it: measure/tolerance.h.
+struct DimensionTolerance {
+  double lower = 0.0;
+  double upper = 0.0;
+};
+
 struct Dimension {
   std::string name;
   double nominal = 0.0;  // in `unit`
@@ -80,6 +92,7 @@ struct Dimension {
   std::string unit;         // "mm" or "deg"
   std::string description;  // may be empty
   std::string thesis;       // the thesis's symbol, "θ8" (docs/conventions.md); may be empty
+  std::optional<DimensionTolerance> tolerance;  // the drawing's default; none when not given
 };
 
 class PartModel {

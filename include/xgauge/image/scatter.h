@@ -20,12 +20,19 @@ inline constexpr double kThesisScatterSigmaMm = 50.0;
 struct ScatterModel {
   double weight = 0.0;    // w in [0, 0.9]; 0 = no scatter
   double sigma_mm = 0.0;  // on the detector
+  // Standard uncertainties of both (optional keys "weight_uncertainty",
+  // "sigma_uncertainty_mm"); default 5 % of the weight and 10 % of the
+  // width, what a fit of the halo around an edge typically leaves. They
+  // enter a measurement's uncertainty budget.
+  double weight_uncertainty = 0.0;
+  double sigma_uncertainty_mm = 0.0;
 
   bool enabled() const { return weight > 0.0; }
   double sigmaPx(double pitch_mm) const { return sigma_mm / pitch_mm; }
 
-  // Job key "scatter": {"weight": w in [0, 0.9], "sigma_mm": s in [0.01, 1e4]}
-  // (Error at the node otherwise).
+  // Job key "scatter": {"weight": w in [0, 0.9], "sigma_mm": s in [0.01, 1e4],
+  // optional "weight_uncertainty", "sigma_uncertainty_mm"} (Error at the node
+  // otherwise).
   static ScatterModel fromConfig(const ConfigNode& node);
 
   // The forward formula at one pixel: intensity I and its blur G(I) there.

@@ -26,11 +26,14 @@
 //                     axis perpendicular to it (an uncalibrated rotary stage)
 //     extra           [{"name": n, "pose": {...}}]: shots with poses of their own
 //   white_region      optional [x, y, width, height]; default: found automatically
+//   defects           optional [{"type": "void", "centre_mm": [x, y, z], "diameter_mm": d}]:
+//                     spherical voids in the part frame, in every shot (lab/defect.h)
 #pragma once
 
 #include "xgauge/core/config.h"
 #include "xgauge/core/transform.h"
 #include "xgauge/image/image.h"
+#include "xgauge/lab/defect.h"
 
 #include <filesystem>
 #include <map>
@@ -42,13 +45,13 @@ namespace xgauge {
 
 // One radiograph to simulate, with its exact pose.
 struct ShotPlan {
-  std::string name;     // file stem, e.g. "t03", "r05", "calibration"
-  std::string pattern;  // "translated" | "rotated" | "free" (docs/conventions.md patterns)
-  std::string reference;       // for "translated": the shot it is translated from
-  double distance_mm = 0.0;    // for "translated": the exact distance from `reference`
-  Vec3 axis = Vec3::Zero();    // for "translated": the unit axis (truth; unknown to a fit)
+  std::string name;          // file stem, e.g. "t03", "r05", "calibration"
+  std::string pattern;       // "translated" | "rotated" | "free" (docs/conventions.md patterns)
+  std::string reference;     // for "translated": the shot it is translated from
+  double distance_mm = 0.0;  // for "translated": the exact distance from `reference`
+  Vec3 axis = Vec3::Zero();  // for "translated": the unit axis (truth; unknown to a fit)
   double nominal_angle_deg = 0.0;  // for "rotated": the angle the stage was asked for
-  Pose pose;                   // world_from_part, exact
+  Pose pose;                       // world_from_part, exact
 };
 
 struct Recipe {
@@ -61,6 +64,7 @@ struct Recipe {
   std::map<std::string, double> true_dimensions;  // by name; others take their nominal
   std::vector<ShotPlan> shots;
   std::optional<PixelRect> white_region;
+  std::vector<Defect> defects;  // checked: each entirely inside the part at its true dimensions
 
   // Reads the recipe and plans the shots (random stage errors drawn from the
   // seed). Sections read by other modules are checked there.

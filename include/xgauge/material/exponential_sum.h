@@ -45,10 +45,20 @@ class ExponentialSum {
 
   const std::vector<ExponentialTerm>& terms() const { return terms_; }
   const std::string& description() const { return description_; }
+  // The standard uncertainty of the transmission anywhere in the calibrated
+  // range (optional key "uncertainty": {"transmission": u}; a measurement's
+  // budget propagates it). Default when a file states none: 0.001, what a
+  // careful wedge calibration reaches (docs/results.md).
+  static constexpr double kDefaultTransmissionUncertainty = 0.001;
+  double transmissionUncertainty() const { return transmission_uncertainty_; }
+  void setTransmissionUncertainty(double u) { transmission_uncertainty_ = u; }
+  // The same curve with every rate scaled by (1 + relative).
+  ExponentialSum withScaledRates(double relative) const;
 
  private:
   std::vector<ExponentialTerm> terms_;
   std::string description_;
+  double transmission_uncertainty_ = kDefaultTransmissionUncertainty;
 };
 
 }  // namespace xgauge

@@ -33,6 +33,9 @@
 //                      bounding-box centre; angles in degrees, R = Rz Ry Rx):
 //                      {"rotation_deg": [[rx0, rx1], [ry0, ry1], [rz0, rz1]],
 //                       "centre_mm": [[x0, x1], [y0, y1], [z0, z1]]}
+//   tolerances         optional {name: {"nominal" (optional, default the part model's),
+//                      "lower", "upper"}}: tolerances of free dimensions, replacing the
+//                      part model's defaults (measure/tolerance.h)
 //   schedule           optional, "default" or "thesis" (measure/schedule.h)
 //   loss               optional, "l1" (thesis eq. 3.13, default) or "l2"
 //   seed               optional, default 1
@@ -45,6 +48,7 @@
 #include "xgauge/image/scatter.h"
 #include "xgauge/loss/loss.h"
 #include "xgauge/measure/schedule.h"
+#include "xgauge/measure/tolerance.h"
 
 #include <array>
 #include <filesystem>
@@ -80,6 +84,9 @@ struct MeasurementJob {
   std::vector<RadiographSpec> radiographs;
   std::array<std::array<double, 2>, 3> rotation_bounds_deg{};
   std::array<std::array<double, 2>, 3> centre_bounds_mm{};
+  // The job's own tolerances of free dimensions, source "job"; tolerancesFor()
+  // adds the part model's defaults.
+  std::map<std::string, Tolerance> tolerances;
   ScheduleKind schedule = ScheduleKind::kDefault;
   LossKind loss = LossKind::kMeanAbsolute;
   uint64_t seed = 1;

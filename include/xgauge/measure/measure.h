@@ -6,7 +6,11 @@
 #include "xgauge/core/transform.h"
 #include "xgauge/measure/inputs.h"
 #include "xgauge/measure/job.h"
+#include "xgauge/measure/self_check.h"
+#include "xgauge/measure/tolerance.h"
+#include "xgauge/measure/uncertainty.h"
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,6 +33,13 @@ struct MeasuredDimension {
   double value = 0.0;
   bool free = false;
   std::string unit;
+  // Free dimensions: the expanded uncertainty U (k = 2; the budget is in
+  // MeasurementResult::uncertainty), nullopt when the radiographs cannot
+  // determine the dimension on its own; the tolerance, when the job or the
+  // part model gives one, and the verdict on it.
+  std::optional<double> expanded_uncertainty;
+  std::optional<Tolerance> tolerance;
+  std::optional<Decision> decision;
 };
 
 struct MeasuredRadiograph {
@@ -46,6 +57,11 @@ struct MeasurementResult {
   double total_loss = 0.0;
   double seconds = 0.0;
   int evaluations = 0;
+  // The budget of every free dimension (measure/uncertainty.h) and the
+  // fit's checks of itself (measure/self_check.h): what a result may be
+  // trusted for, and what may be wrong with it.
+  UncertaintyBudget uncertainty;
+  SelfCheck check;
 };
 
 // Runs the job's schedule on the loaded inputs. Shows a progress bar per

@@ -40,6 +40,15 @@ struct Machine {
   double cx_px = 512.0;
   double cy_px = 512.0;
   std::string description;
+  // Standard uncertainties a lab states for its machine (optional key
+  // "uncertainty"; docs/formats.md): they enter every measurement's budget.
+  double source_detector_distance_uncertainty_mm = kDefaultDistanceUncertaintyMm;
+  double pixel_pitch_uncertainty_relative = kDefaultPitchUncertaintyRelative;
+  // Defaults when a machine file states none: a source-detector distance
+  // taken from a drawing or a tape (0.5 mm), and a pitch as the panel's
+  // data sheet gives it (1e-4 of the pitch).
+  static constexpr double kDefaultDistanceUncertaintyMm = 0.5;
+  static constexpr double kDefaultPitchUncertaintyRelative = 1e-4;
 
   static Machine fromConfig(const ConfigNode& node);  // validates; does not call finish()
   static Machine load(const std::filesystem::path& path);

@@ -1,0 +1,51 @@
+// A measurement's checks of itself (docs/method.md, "Self-checks"): what
+// turns a silent failure into a warning in the result and the table.
+//   - a free parameter at (within 1e-4 of its range from) a bound;
+//   - a fit worse than the noise explains: the mean |residual| per pixel
+//     against the mean |noise| measured in the radiograph's own open-beam
+//     region, above kMisfitRatio;
+//   - a radiograph whose residuals are kWorseRatio times the others' median;
+//   - residual regions: connected areas (8-neighbours, one sign) where the
+//     3 x 3 mean of the residual exceeds kRegionSigmas robust sigmas of that
+//     mean over the roi, at least kRegionMinPixels pixels of the fit's level:
+//     where the part differs from its model (a void, a chip, a burr, dirt).
+#pragma once
+
+#include "xgauge/core/transform.h"
+
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace xgauge {
+
+inline constexpr double kMisfitRatio = 2.0;
+inline constexpr double kWorseRatio = 2.0;
+inline constexpr double kRegionSigmas = 5.0;
+inline constexpr int kRegionMinPixels = 6;
+
+struct ResidualRegion {
+  std::string radiograph;
+  Vec2 centre_px;           // full-size detector pixels (continuous), residual-weighted
+  std::array<int, 4> box_px{};  // [x, y, width, height], full-size pixels
+  double area_mm2 = 0.0;    // on the detector
+  double peak = 0.0;        // largest |simulated - measured| of the 3 x 3 mean (normalized units)
+  double sigmas = 0.0;      // peak in robust sigmas of the 3 x 3 mean
+  std::string sign;         // "brighter" (less material than modelled) or "darker"
+  std::optional<Vec3> part_mm;  // middle of the centre ray's path through the fitted part
+};
+
+struct RadiographCheck {
+  std::string name;
+  double noise_sigma = 0.0;         // of one pixel of the fit's level, open beam
+  double mean_abs_residual = 0.0;   // per pixel of the roi at the fit's level
+  double misfit_ratio = 0.0;        // mean |residual| / (noise sigma sqrt(2 / pi))
+};
+
+struct SelfCheck {
+  std::vector<std::string> warnings;
+  std::vector<RadiographCheck> radiographs;
+  std::vector<ResidualRegion> regions;
+};
+
+}  // namespace xgauge

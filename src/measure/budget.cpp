@@ -1,0 +1,249 @@
+#include "budget.h"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
+#include <map>
+
+namespace xgauge {
+
+namespace {
+
+constexpr int kBlockPx = 16;      // cluster size of the sandwich (uncertainty.h)
+constexpr double kNullRatio = 1e-9;  // eigenvalue of the scaled normal matrix below which a
+                                     // direction is taken as not determined at all
+
+// The pseudo-inverse of the symmetric positive semi-definite A, scaled to a
+// unit diagonal first so that millimetres and degrees compare; `null` gets
+// the directions (in unscaled parameters) it drops.
+Eigen::MatrixXd pseudoInverse(const Eigen::MatrixXd& a, std::vector<Eigen::VectorXd>& null) {
+  const Eigen::Index n = a.rows();
+  Eigen::VectorXd s(n);
+  for (Eigen::Index k = 0; k < n; ++k) s(k) = a(k, k) > 0.0 ? 1.0 / std::sqrt(a(k, k)) : 0.0;
+  const Eigen::MatrixXd scaled = s.asDiagonal() * a * s.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(scaled);
+  const Eigen::VectorXd& lambda = eigen.eigenvalues();
+  const double largest = lambda.maxCoeff();
+  Eigen::VectorXd inverse(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const bool dropped = !(lambda(k) > kNullRatio * largest);
+    inverse(k) = dropped ? 0.0 : 1.0 / lambda(k);
+    if (dropped) null.push_back((s.asDiagonal() * eigen.eigenvectors().col(k)).normalized());
+  }
+  for (Eigen::Index k = 0; k < n; ++k)
+    if (s(k) == 0.0) null.push_back(Eigen::VectorXd::Unit(n, k));  // a parameter nothing sees
+  return s.asDiagonal() * eigen.eigenvectors() * inverse.asDiagonal() *
+         eigen.eigenvectors().transpose() * s.asDiagonal();
+}
+
+// A re-simulation with one influence moved by its standard uncertainty.
+struct Influence {
+  std::string name, quantity, unit;
+  double u = 0.0;              // standard uncertainty, in unit
+  Eigen::VectorXd delta_theta;  // the linearised re-solve for q + u
+};
+
+}  // namespace
+
+UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const double> theta,
+                                      const LinearizedFit& fit) {
+  UncertaintyBudget budget;
+  budget.level = fit.level;
+  const Eigen::MatrixXd& jacobian = fit.jacobian;
+  const Eigen::VectorXd& r = fit.residuals;
+  const Eigen::VectorXd w = fit.weights();
+  const Eigen::Index m = r.size(), n = jacobian.cols();
+  budget.pixels = static_cast<double>(m);
+
+  // A = J^T W J, accumulated in row chunks (J has millions of rows).
+  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(n, n);
+  constexpr Eigen::Index kChunk = 8192;
+  for (Eigen::Index i = 0; i < m; i += kChunk) {
+    const Eigen::Index rows = std::min(kChunk, m - i);
+    const auto block = jacobian.middleRows(i, rows);
+    a.noalias() += block.transpose() * w.segment(i, rows).asDiagonal() * block;
+  }
+  std::vector<Eigen::VectorXd> null;
+  const Eigen::MatrixXd a_inverse = pseudoInverse(a, null);
+
+  // B: the scores J_i psi_i summed per block of pixels, then their outer
+  // products (the blocks' sums are taken as independent, the pixels within a
+  // block not).
+  Eigen::MatrixXd b = Eigen::MatrixXd::Zero(n, n);
+  for (const ResidualSegment& segment : fit.segments) {
+    const int bw = (segment.roi.width + kBlockPx - 1) / kBlockPx;
+    const int bh = (segment.roi.height + kBlockPx - 1) / kBlockPx;
+    Eigen::MatrixXd scores = Eigen::MatrixXd::Zero(n, static_cast<Eigen::Index>(bw) * bh);
+    for (int y = 0; y < segment.roi.height; ++y)
+      for (int x = 0; x < segment.roi.width; ++x) {
+        const auto i = static_cast<Eigen::Index>(segment.first) +
+                       static_cast<Eigen::Index>(y) * segment.roi.width + x;
+        scores.col(static_cast<Eigen::Index>(y / kBlockPx) * bw + x / kBlockPx) +=
+            jacobian.row(i).transpose() * (w(i) * r(i));
+      }
+    b.noalias() += scores * scores.transpose();
+  }
+  const double small_sample = static_cast<double>(m) / static_cast<double>(std::max<Eigen::Index>(1, m - n));
+  const Eigen::MatrixXd statistical = small_sample * a_inverse * b * a_inverse;
+
+  // The influences, each by one re-simulation at theta.
+  std::vector<int> radiographs;
+  for (const ResidualSegment& s : fit.segments) radiographs.push_back(s.radiograph);
+  std::vector<Influence> influences;
+  auto resolve = [&](ForwardModel& moved, Influence influence) {
+    std::vector<double> moved_r;
+    if (!moved.residuals(theta, fit.level, fit.samples, radiographs, moved_r) ||
+        moved_r.size() != static_cast<size_t>(m)) {
+      budget.notes.push_back(fmt::format("{}: the moved model cannot be simulated at the "
+                                         "solution; left out",
+                                         influence.name));
+      return;
+    }
+    const Eigen::VectorXd dr = Eigen::Map<const Eigen::VectorXd>(moved_r.data(), m) - r;
+    Eigen::VectorXd g = Eigen::VectorXd::Zero(n);
+    for (Eigen::Index i = 0; i < m; i += kChunk) {
+      const Eigen::Index rows = std::min(kChunk, m - i);
+      g.noalias() += jacobian.middleRows(i, rows).transpose() *
+                     (w.segment(i, rows).array() * dr.segment(i, rows).array()).matrix();
+    }
+    influence.delta_theta = -a_inverse * g;
+    influences.push_back(std::move(influence));
+  };
+  const MeasurementInputs& inputs = model.inputs();
+  if (!model.materialIndices().empty()) {
+    budget.notes.push_back("material: fitted with the dimensions, its uncertainty is statistical");
+  } else {
+    // The scale of the rates that moves the curve by u at the worst path:
+    // dI/d(scale) = -x sum a_k mu_k exp(-mu_k x).
+    const ExponentialSum material = model.material();
+    const double u = material.transmissionUncertainty();
+    double slope = 0.0;
+    const double longest = model.partSizeMm();
+    for (int k = 0; k <= 400; ++k) {
+      const double x = longest * k / 400.0;
+      double d = 0.0;
+      for (const auto& t : material.terms()) d += t.weight * t.mu_per_mm * std::exp(-t.mu_per_mm * x);
+      slope = std::max(slope, x * d);
+    }
+    if (u > 0.0 && slope > 0.0) {
+      model.setMaterial(material.withScaledRates(u / slope));
+      resolve(model, {"material", fmt::format("transmission curve, u = {:.2g}", u), "transmission", u, {}});
+      model.setMaterial(material);
+    }
+  }
+  auto withInputs = [&](const std::string& name, const std::string& quantity,
+                        const std::string& unit, double u, auto change) {
+    if (!(u > 0.0)) return;
+    MeasurementInputs moved = inputs;
+    change(moved);
+    ForwardModel moved_model(moved, model.material());
+    resolve(moved_model, {name, quantity, unit, u, {}});
+  };
+  const ScatterModel& scatter = inputs.job.scatter;
+  if (scatter.enabled()) {
+    withInputs("scatter weight", fmt::format("w = {:.4g} +- {:.2g}", scatter.weight, scatter.weight_uncertainty),
+               "1", scatter.weight_uncertainty,
+               [&](MeasurementInputs& in) { in.job.scatter.weight += scatter.weight_uncertainty; });
+    withInputs("scatter width",
+               fmt::format("sigma = {:.4g} +- {:.2g} mm", scatter.sigma_mm, scatter.sigma_uncertainty_mm),
+               "mm", scatter.sigma_uncertainty_mm,
+               [&](MeasurementInputs& in) { in.job.scatter.sigma_mm += scatter.sigma_uncertainty_mm; });
+  }
+  const Machine& machine = inputs.machine;
+  withInputs("source-detector distance",
+             fmt::format("D = {:.2f} +- {:.2g} mm", machine.source_detector_distance_mm,
+                         machine.source_detector_distance_uncertainty_mm),
+             "mm", machine.source_detector_distance_uncertainty_mm, [&](MeasurementInputs& in) {
+               in.machine.source_detector_distance_mm += machine.source_detector_distance_uncertainty_mm;
+             });
+  withInputs("pixel pitch",
+             fmt::format("pitch {:.4g} mm, relative u = {:.2g}", machine.pitch_u_mm,
+                         machine.pixel_pitch_uncertainty_relative),
+             "relative", machine.pixel_pitch_uncertainty_relative, [&](MeasurementInputs& in) {
+               in.machine.pitch_u_mm *= 1.0 + machine.pixel_pitch_uncertainty_relative;
+               in.machine.pitch_v_mm *= 1.0 + machine.pixel_pitch_uncertainty_relative;
+             });
+  for (size_t k = 0; k < inputs.job.radiographs.size(); ++k) {
+    const RadiographSpec& spec = inputs.job.radiographs[k];
+    if (spec.pattern != Acquisition::kTranslated) continue;
+    const double u = kDefaultTranslationUncertaintyMm;
+    withInputs("translation " + spec.name,
+               fmt::format("distance {:.4f} +- {:.2g} mm", spec.distance_mm, u), "mm", u,
+               [&](MeasurementInputs& in) { in.job.radiographs[k].distance_mm += u; });
+  }
+
+  // The total covariance and each free dimension's budget.
+  Eigen::MatrixXd total = statistical;
+  for (const Influence& f : influences) total += f.delta_theta * f.delta_theta.transpose();
+  const auto& dims = model.part().dimensions();
+  std::vector<Eigen::Index> column;  // of each free dimension in fit.indices
+  for (int d : model.freeDimensionIndices()) {
+    const auto it = std::find(fit.indices.begin(), fit.indices.end(), d);
+    XG_CHECK(it != fit.indices.end(), "free dimension {} is not in the linearisation", d);
+    column.push_back(it - fit.indices.begin());
+  }
+  const auto& free = model.freeDimensionIndices();
+  for (size_t j = 0; j < free.size(); ++j) {
+    const Eigen::Index c = column[j];
+    DimensionUncertainty du;
+    du.name = dims[static_cast<size_t>(free[j])].name;
+    const std::string unit = dims[static_cast<size_t>(free[j])].unit;
+    for (const Eigen::VectorXd& v : null) du.identifiable &= std::abs(v(c)) < 1e-3;
+    const double u_stat = std::sqrt(std::max(0.0, statistical(c, c)));
+    du.components.push_back({"statistical", fmt::format("noise and misfit over {} pixels", m), u_stat,
+                             unit, 1.0, u_stat});
+    for (const Influence& f : influences) {
+      const double d = f.delta_theta(c);
+      du.components.push_back({f.name, f.quantity, f.u, f.unit, d / f.u, std::abs(d)});
+    }
+    du.combined = std::sqrt(std::max(0.0, total(c, c)));
+    du.expanded = du.identifiable ? budget.coverage_factor * du.combined : 0.0;
+    budget.dimensions.push_back(std::move(du));
+  }
+
+  // Measurable combinations: two dimensions whose errors are (anti)correlated
+  // so strongly that their sum (difference) is known much better than either.
+  for (size_t i = 0; i < free.size(); ++i)
+    for (size_t j = i + 1; j < free.size(); ++j) {
+      const Eigen::Index ci = column[i], cj = column[j];
+      const double vi = total(ci, ci), vj = total(cj, cj), cov = total(ci, cj);
+      const bool either_lost = !budget.dimensions[i].identifiable || !budget.dimensions[j].identifiable;
+      if (!(vi > 0.0 && vj > 0.0) && !either_lost) continue;
+      const double rho = vi > 0.0 && vj > 0.0 ? cov / std::sqrt(vi * vj) : 0.0;
+      const double sign = either_lost ? 0.0 : (rho < 0.0 ? 1.0 : -1.0);
+      double coefficient = sign;
+      if (either_lost) {
+        // The combination orthogonal to every null direction, if a sum or
+        // difference is.
+        for (double s : {1.0, -1.0}) {
+          bool orthogonal = true;
+          for (const Eigen::VectorXd& v : null)
+            orthogonal &= std::abs(v(ci) + s * v(cj)) < 1e-3 * (std::abs(v(ci)) + std::abs(v(cj)));
+          if (orthogonal) coefficient = s;
+        }
+        if (coefficient == 0.0) continue;
+      } else if (std::abs(rho) < 0.95) {
+        continue;
+      }
+      const double var = vi + vj + 2.0 * coefficient * cov;
+      const double u = std::sqrt(std::max(0.0, var));
+      if (!either_lost && !(u < 0.5 * std::sqrt(std::min(vi, vj)))) continue;
+      MeasurableCombination combination;
+      combination.terms = {{budget.dimensions[i].name, 1.0}, {budget.dimensions[j].name, coefficient}};
+      combination.expression = fmt::format("{} {} {}", budget.dimensions[i].name,
+                                           coefficient > 0 ? "+" : "-", budget.dimensions[j].name);
+      combination.value = theta[static_cast<size_t>(free[i])] + coefficient * theta[static_cast<size_t>(free[j])];
+      combination.expanded = budget.coverage_factor * u;
+      budget.combinations.push_back(std::move(combination));
+    }
+  if (!null.empty())
+    budget.notes.push_back(fmt::format("{} direction(s) of the parameters are not determined by the "
+                                       "radiographs",
+                                       null.size()));
+  return budget;
+}
+
+}  // namespace xgauge

@@ -1,0 +1,217 @@
+#include "checks.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace xgauge {
+
+namespace {
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  std::nth_element(v.begin(), v.begin() + static_cast<ptrdiff_t>(v.size() / 2), v.end());
+  return v[v.size() / 2];
+}
+
+// The noise of one pixel of a normalized image over `region`, from the
+// differences of horizontal neighbours (a smooth trend such as the heel
+// effect cancels): sigma = 1.4826 median |d| / sqrt(2).
+double neighbourNoise(const Image& image, const PixelRect& region) {
+  std::vector<double> d;
+  for (int y = region.y; y < region.bottom(); ++y)
+    for (int x = region.x; x + 1 < region.right(); ++x)
+      d.push_back(std::abs(static_cast<double>(image(x + 1, y)) - static_cast<double>(image(x, y))));
+  return 1.4826 * median(std::move(d)) / std::sqrt(2.0);
+}
+
+// Where the ray from the source to a detector point passes through the
+// fitted part: the middle of its first entry and last exit, in part
+// coordinates (Moeller-Trumbore on every triangle: a part has thousands).
+std::optional<Vec3> middleOfPath(const TriangleMesh& mesh, const Pose& pose, const Vec3& source,
+                                 const Vec3& target) {
+  const Mat3 back = pose.rotation.transpose();
+  const Vec3 o = back * (source - pose.translation_mm);
+  const Vec3 dir = back * (target - source);
+  double first = std::numeric_limits<double>::infinity(), last = -first;
+  for (const Triangle& t : mesh.triangles) {
+    const Vec3& a = mesh.vertices[t[0]];
+    const Vec3 e1 = mesh.vertices[t[1]] - a, e2 = mesh.vertices[t[2]] - a;
+    const Vec3 p = dir.cross(e2);
+    const double det = e1.dot(p);
+    if (std::abs(det) < 1e-300) continue;
+    const Vec3 s = o - a;
+    const double u = s.dot(p) / det;
+    if (u < 0.0 || u > 1.0) continue;
+    const Vec3 q = s.cross(e1);
+    const double v = dir.dot(q) / det;
+    if (v < 0.0 || u + v > 1.0) continue;
+    const double h = e2.dot(q) / det;
+    first = std::min(first, h), last = std::max(last, h);
+  }
+  if (!(last > first)) return std::nullopt;
+  return o + 0.5 * (first + last) * dir;
+}
+
+}  // namespace
+
+SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
+                           const LinearizedFit& fit) {
+  SelfCheck check;
+  // Parameters at a bound.
+  const ParameterLayout& layout = model.parameters();
+  for (int i : model.jointIndices()) {
+    const auto k = static_cast<size_t>(i);
+    const double lo = model.lower()[k], hi = model.upper()[k], range = hi - lo;
+    if (!(range > 0.0)) continue;
+    const std::string& full = layout[i].name;  // "dim/width", "t00/position/x"
+    const std::string name = full.rfind("dim/", 0) == 0 ? full.substr(4) : full;
+    if (theta[k] - lo <= 1e-4 * range)
+      check.warnings.push_back(fmt::format("{} = {:.4f} is at its lower bound {:.4f}: the true "
+                                           "value may lie below it; widen the bounds",
+                                           name, theta[k], lo));
+    if (hi - theta[k] <= 1e-4 * range)
+      check.warnings.push_back(fmt::format("{} = {:.4f} is at its upper bound {:.4f}: the true "
+                                           "value may lie above it; widen the bounds",
+                                           name, theta[k], hi));
+  }
+
+  // Per radiograph: the residual against the noise, and residual regions.
+  const int level = fit.level;
+  const double scale = static_cast<double>(1 << level);
+  const Machine& machine = model.machine();
+  const Vec3 source = machine.sourceWorld();
+  const TriangleMesh mesh = model.part().mesh(theta.first(model.part().dimensions().size()));
+  for (const ResidualSegment& segment : fit.segments) {
+    const int r = segment.radiograph;
+    const RadiographSpec& spec = model.spec(r);
+    const Image& measured = model.radiograph(r).levels[static_cast<size_t>(level)];
+    const PixelRect& white_full = spec.white_region;
+    const PixelRect white{static_cast<int>(white_full.x / scale), static_cast<int>(white_full.y / scale),
+                          std::max(2, static_cast<int>(white_full.width / scale)),
+                          std::max(1, static_cast<int>(white_full.height / scale))};
+    const PixelRect roi = segment.roi;
+    // The residual image of the roi, unscaled.
+    const double unscale = std::sqrt(static_cast<double>(roi.area()));
+    Image residual(roi.width, roi.height);
+    double sum_abs = 0.0;
+    for (int y = 0; y < roi.height; ++y)
+      for (int x = 0; x < roi.width; ++x) {
+        const double v =
+            unscale * fit.residuals(static_cast<Eigen::Index>(segment.first) +
+                                    static_cast<Eigen::Index>(y) * roi.width + x);
+        residual(x, y) = static_cast<float>(v);
+        sum_abs += std::abs(v);
+      }
+    RadiographCheck rc;
+    rc.name = spec.name;
+    rc.noise_sigma = neighbourNoise(measured, white.intersect(measured.rect()));
+    rc.mean_abs_residual = sum_abs / static_cast<double>(roi.area());
+    rc.misfit_ratio = rc.noise_sigma > 0.0
+                          ? rc.mean_abs_residual / (rc.noise_sigma * std::sqrt(2.0 / std::numbers::pi))
+                          : 0.0;
+    if (rc.misfit_ratio > kMisfitRatio)
+      check.warnings.push_back(fmt::format(
+          "{}: the fit leaves a mean |residual| of {:.3g} per pixel, {:.1f} times what the noise "
+          "of its open beam explains ({:.3g}): the part, the material, the scatter or the "
+          "machine may differ from their models",
+          spec.name, rc.mean_abs_residual, rc.misfit_ratio,
+          rc.noise_sigma * std::sqrt(2.0 / std::numbers::pi)));
+    check.radiographs.push_back(rc);
+
+    // Residual regions.
+    Image mean3(roi.width, roi.height);
+    for (int y = 0; y < roi.height; ++y)
+      for (int x = 0; x < roi.width; ++x) {
+        double s = 0.0;
+        int count = 0;
+        for (int dy = -1; dy <= 1; ++dy)
+          for (int dx = -1; dx <= 1; ++dx) {
+            const int xx = x + dx, yy = y + dy;
+            if (xx < 0 || yy < 0 || xx >= roi.width || yy >= roi.height) continue;
+            s += static_cast<double>(residual(xx, yy)), ++count;
+          }
+        mean3(x, y) = static_cast<float>(s / count);
+      }
+    std::vector<double> magnitudes;
+    magnitudes.reserve(static_cast<size_t>(roi.area()));
+    for (int y = 0; y < roi.height; ++y)
+      for (int x = 0; x < roi.width; ++x) magnitudes.push_back(std::abs(static_cast<double>(mean3(x, y))));
+    const double sigma = 1.4826 * median(std::move(magnitudes));
+    if (!(sigma > 0.0)) continue;
+    const double threshold = kRegionSigmas * sigma;
+    std::vector<int> label(static_cast<size_t>(roi.area()), 0);
+    int next = 0;
+    for (int y0 = 0; y0 < roi.height; ++y0)
+      for (int x0 = 0; x0 < roi.width; ++x0) {
+        const auto v0 = static_cast<double>(mean3(x0, y0));
+        if (std::abs(v0) <= threshold || label[static_cast<size_t>(y0 * roi.width + x0)]) continue;
+        const double sign = v0 > 0 ? 1.0 : -1.0;
+        ++next;
+        std::vector<std::pair<int, int>> stack{{x0, y0}};
+        label[static_cast<size_t>(y0 * roi.width + x0)] = next;
+        int count = 0, xmin = x0, xmax = x0, ymin = y0, ymax = y0;
+        double sw = 0.0, sx = 0.0, sy = 0.0, peak = 0.0;
+        while (!stack.empty()) {
+          const auto [x, y] = stack.back();
+          stack.pop_back();
+          const double v = sign * static_cast<double>(mean3(x, y));
+          ++count, sw += v, sx += v * (x + 0.5), sy += v * (y + 0.5), peak = std::max(peak, v);
+          xmin = std::min(xmin, x), xmax = std::max(xmax, x), ymin = std::min(ymin, y), ymax = std::max(ymax, y);
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int xx = x + dx, yy = y + dy;
+              if (xx < 0 || yy < 0 || xx >= roi.width || yy >= roi.height) continue;
+              int& l = label[static_cast<size_t>(yy * roi.width + xx)];
+              if (l || sign * static_cast<double>(mean3(xx, yy)) <= threshold) continue;
+              l = next;
+              stack.emplace_back(xx, yy);
+            }
+        }
+        if (count < kRegionMinPixels) continue;
+        ResidualRegion region;
+        region.radiograph = spec.name;
+        region.centre_px = Vec2((roi.x + sx / sw) * scale, (roi.y + sy / sw) * scale);
+        region.box_px = {static_cast<int>((roi.x + xmin) * scale), static_cast<int>((roi.y + ymin) * scale),
+                         static_cast<int>((xmax - xmin + 1) * scale), static_cast<int>((ymax - ymin + 1) * scale)};
+        region.area_mm2 = count * scale * scale * machine.pitch_u_mm * machine.pitch_v_mm;
+        region.peak = peak;
+        region.sigmas = peak / sigma;
+        // simulated - measured > 0: the radiograph is darker than the model.
+        region.sign = sign > 0 ? "darker" : "brighter";
+        region.part_mm = middleOfPath(mesh, model.pose(theta, r), source,
+                                      machine.detectorPoint(region.centre_px.x(), region.centre_px.y()));
+        check.regions.push_back(region);
+      }
+  }
+  std::sort(check.regions.begin(), check.regions.end(),
+            [](const ResidualRegion& a, const ResidualRegion& b) { return a.sigmas > b.sigmas; });
+  for (const ResidualRegion& region : check.regions)
+    check.warnings.push_back(fmt::format(
+        "{}: a residual region at pixel ({:.0f}, {:.0f}), {:.2f} mm^2 on the detector, {:.1f} "
+        "sigmas, {} than the model{}",
+        region.radiograph, region.centre_px.x(), region.centre_px.y(), region.area_mm2,
+        region.sigmas, region.sign,
+        region.part_mm ? fmt::format(" (part coordinates ({:.2f}, {:.2f}, {:.2f}) mm)",
+                                     region.part_mm->x(), region.part_mm->y(), region.part_mm->z())
+                       : std::string()));
+
+  // One radiograph much worse than the others.
+  if (check.radiographs.size() >= 2)
+    for (const RadiographCheck& rc : check.radiographs) {
+      std::vector<double> others;
+      for (const RadiographCheck& o : check.radiographs)
+        if (&o != &rc) others.push_back(o.mean_abs_residual);
+      const double typical = median(others);
+      if (typical > 0.0 && rc.mean_abs_residual > kWorseRatio * typical)
+        check.warnings.push_back(fmt::format(
+            "{}: its fit is {:.1f} times worse than the other radiographs' (mean |residual| "
+            "{:.3g} against {:.3g}): check that shot",
+            rc.name, rc.mean_abs_residual / typical, rc.mean_abs_residual, typical));
+    }
+  return check;
+}
+
+}  // namespace xgauge

@@ -1,0 +1,251 @@
+#include "least_squares.h"
+
+#include "xgauge/core/error.h"
+#include "xgauge/core/progress.h"
+
+#include <ceres/ceres.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+namespace xgauge {
+
+namespace {
+
+constexpr double kStep = 2e-3;  // mm or deg (least_squares.h)
+
+// Huber's loss as a residual: sign(r) sqrt(rho(r^2)) and its derivative.
+double robustResidual(double r, double a, double* derivative) {
+  const double m = std::abs(r);
+  if (m <= a) {
+    *derivative = 1.0;
+    return r;
+  }
+  const double root = std::sqrt(2.0 * a * m - a * a);  // >= a > 0
+  *derivative = a / root;
+  return std::copysign(root, r);
+}
+
+double huberLoss(const std::vector<double>& r, const std::vector<ResidualSegment>& segments) {
+  double sum = 0.0;
+  for (size_t s = 0; s < segments.size(); ++s) {
+    const size_t end = s + 1 < segments.size() ? segments[s + 1].first : r.size();
+    const double a = segments[s].threshold;
+    for (size_t i = segments[s].first; i < end; ++i) {
+      const double m = std::abs(r[i]);
+      sum += m <= a ? m * m : 2.0 * a * m - a * a;
+    }
+  }
+  return sum;
+}
+
+// The radiographs' residuals as one Ceres residual block: every evaluation
+// renders every radiograph once, so the pixels cannot be separate blocks.
+// Ceres asks for the Jacobian only at points it has accepted.
+class ImageResiduals final : public ceres::CostFunction {
+ public:
+  ImageResiduals(ForwardModel& model, std::vector<double> theta, std::vector<int> indices,
+                 std::vector<int> radiographs, std::vector<ResidualSegment> segments, int level,
+                 int samples, size_t count, ProgressBar& progress)
+      : model_(model), theta_(std::move(theta)), indices_(std::move(indices)),
+        radiographs_(std::move(radiographs)), segments_(std::move(segments)), level_(level),
+        samples_(samples), progress_(progress) {
+    set_num_residuals(static_cast<int>(count));
+    mutable_parameter_block_sizes()->push_back(static_cast<int>(indices_.size()));
+  }
+
+  int evaluations() const { return evaluations_; }
+
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    const size_t n = indices_.size();
+    std::vector<double> at = theta_;
+    for (size_t k = 0; k < n; ++k) at[static_cast<size_t>(indices_[k])] = parameters[0][k];
+    if (!render(at, r_)) return false;
+    derivative_.resize(r_.size());
+    transform(r_, residuals, derivative_.data());
+    if (jacobians == nullptr || jacobians[0] == nullptr) return true;
+    std::vector<double> shifted_r;
+    for (size_t k = 0; k < n; ++k) {
+      const auto i = static_cast<size_t>(indices_[k]);
+      std::vector<double> shifted = at;
+      shifted[i] = at[i] + kStep <= model_.upper()[i] ? at[i] + kStep : at[i] - kStep;
+      const double step = shifted[i] - at[i];
+      if (!render(shifted, shifted_r)) return false;
+      // The derivative of the transformed residual: its slope at r times
+      // the raw residual's difference quotient (no jump across the threshold).
+      for (size_t m = 0; m < r_.size(); ++m)
+        jacobians[0][m * n + k] = derivative_[m] * (shifted_r[m] - r_[m]) / step;
+    }
+    return true;
+  }
+
+ private:
+  bool render(const std::vector<double>& theta, std::vector<double>& out) const {
+    ++evaluations_;
+    progress_.advance();
+    return model_.residuals(theta, level_, samples_, radiographs_, out) &&
+           out.size() == static_cast<size_t>(num_residuals());
+  }
+  void transform(const std::vector<double>& r, double* out, double* derivative) const {
+    for (size_t s = 0; s < segments_.size(); ++s) {
+      const size_t end = s + 1 < segments_.size() ? segments_[s + 1].first : r.size();
+      for (size_t i = segments_[s].first; i < end; ++i)
+        out[i] = robustResidual(r[i], segments_[s].threshold, &derivative[i]);
+    }
+  }
+
+  ForwardModel& model_;
+  std::vector<double> theta_;
+  std::vector<int> indices_, radiographs_;
+  std::vector<ResidualSegment> segments_;
+  int level_, samples_;
+  ProgressBar& progress_;
+  mutable std::vector<double> r_, derivative_;
+  mutable int evaluations_ = 0;
+};
+
+}  // namespace
+
+Eigen::VectorXd LinearizedFit::weights() const {
+  Eigen::VectorXd w = Eigen::VectorXd::Ones(residuals.size());
+  for (size_t s = 0; s < segments.size(); ++s) {
+    const auto end = static_cast<Eigen::Index>(s + 1 < segments.size() ? segments[s + 1].first
+                                                                      : residuals.size());
+    const double a = segments[s].threshold;
+    for (auto i = static_cast<Eigen::Index>(segments[s].first); i < end; ++i)
+      if (std::abs(residuals(i)) > a) w(i) = a / std::abs(residuals(i));
+  }
+  return w;
+}
+
+std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<const double> theta,
+                                              std::span<const int> radiographs, int level,
+                                              int samples, bool robust) {
+  std::vector<ResidualSegment> segments;
+  size_t first = 0;
+  for (int r : radiographs) {
+    const PixelRect roi = model.radiograph(r).rois[static_cast<size_t>(level)];
+    segments.push_back({r, roi, first, std::numeric_limits<double>::infinity()});
+    first += static_cast<size_t>(roi.area());
+  }
+  if (!robust) return segments;
+  for (ResidualSegment& segment : segments) {
+    std::vector<double> r;
+    const int only[] = {segment.radiograph};
+    if (!model.residuals(theta, level, samples, only, r) || r.empty()) continue;
+    for (double& v : r) v = std::abs(v);
+    std::nth_element(r.begin(), r.begin() + static_cast<ptrdiff_t>(r.size() / 2), r.end());
+    // A perfect fit (noise-free simulation) has a zero median: keep the
+    // threshold positive so that the loss stays a loss.
+    segment.threshold = std::max(1.345 * 1.4826 * r[r.size() / 2], 1e-12);
+  }
+  return segments;
+}
+
+bool linearize(ForwardModel& model, std::span<const double> theta, const std::vector<int>& indices,
+               std::vector<ResidualSegment> segments, int level, int samples, LinearizedFit& out) {
+  std::vector<int> radiographs;
+  for (const ResidualSegment& s : segments) radiographs.push_back(s.radiograph);
+  out.indices = indices;
+  out.segments = std::move(segments);
+  out.level = level, out.samples = samples;
+  std::vector<double> r, shifted_r;
+  if (!model.residuals(theta, level, samples, radiographs, r)) return false;
+  const auto m = static_cast<Eigen::Index>(r.size());
+  out.residuals = Eigen::Map<const Eigen::VectorXd>(r.data(), m);
+  out.jacobian.resize(m, static_cast<Eigen::Index>(indices.size()));
+  std::vector<double> shifted(theta.begin(), theta.end());
+  for (size_t k = 0; k < indices.size(); ++k) {
+    const auto i = static_cast<size_t>(indices[k]);
+    const double h = theta[i] + kStep <= model.upper()[i] ? kStep : -kStep;
+    shifted[i] = theta[i] + h;
+    const bool ok = model.residuals(shifted, level, samples, radiographs, shifted_r) &&
+                    shifted_r.size() == r.size();
+    shifted[i] = theta[i];
+    if (!ok) return false;
+    for (Eigen::Index j = 0; j < m; ++j)
+      out.jacobian(j, static_cast<Eigen::Index>(k)) =
+          (shifted_r[static_cast<size_t>(j)] - r[static_cast<size_t>(j)]) / h;
+  }
+  return true;
+}
+
+StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
+                              const std::vector<int>& indices, const std::vector<int>& radiographs,
+                              int level, int samples, int max_iterations, bool robust) {
+  const auto start = std::chrono::steady_clock::now();
+  StageReport report;
+  report.name = robust ? "joint, robust least squares" : "joint, least squares";
+  report.method = "ceres_levenberg_marquardt";
+  report.level = level;
+  report.samples = samples;
+  std::vector<double> r;
+  if (!model.residuals(theta, level, samples, radiographs, r)) {
+    report.termination = "start point invalid";
+    return report;
+  }
+  const std::vector<ResidualSegment> segments =
+      residualSegments(model, theta, radiographs, level, samples, robust);
+  report.evaluations = 1 + (robust ? static_cast<int>(radiographs.size()) : 0);
+  report.loss_before = huberLoss(r, segments);
+
+  const size_t n = indices.size();
+  std::vector<double> x(n);
+  for (size_t k = 0; k < n; ++k) {
+    const auto i = static_cast<size_t>(indices[k]);
+    x[k] = std::clamp(theta[i], model.lower()[i], model.upper()[i]);
+  }
+  ProgressBar progress(report.name, max_iterations * static_cast<int>(n + 2));
+  ImageResiduals cost(model, theta, indices, radiographs, segments, level, samples, r.size(),
+                      progress);
+  ceres::Problem::Options problem_options;
+  problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
+  ceres::Problem problem(problem_options);
+  problem.AddResidualBlock(&cost, nullptr, x.data());
+  for (size_t k = 0; k < n; ++k) {
+    const auto i = static_cast<size_t>(indices[k]);
+    problem.SetParameterLowerBound(x.data(), static_cast<int>(k), model.lower()[i]);
+    problem.SetParameterUpperBound(x.data(), static_cast<int>(k), model.upper()[i]);
+  }
+  ceres::Solver::Options options;
+  options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
+  // Millions of residuals and a few dozen parameters: the normal equations
+  // are small and dense.
+  options.linear_solver_type = ceres::DENSE_NORMAL_CHOLESKY;
+  options.max_num_iterations = max_iterations;
+  options.function_tolerance = 1e-10;
+  options.parameter_tolerance = 1e-9;
+  options.num_threads = 1;  // one residual block; the renderer is parallel itself
+  options.logging_type = ceres::SILENT;
+  options.minimizer_progress_to_stdout = false;
+  ceres::Solver::Summary summary;
+  ceres::Solve(options, &problem, &summary);
+  progress.finish();
+
+  report.evaluations += cost.evaluations();
+  report.loss_after = report.loss_before;
+  const bool usable = summary.termination_type == ceres::CONVERGENCE ||
+                      summary.termination_type == ceres::NO_CONVERGENCE ||
+                      summary.termination_type == ceres::USER_SUCCESS;
+  // Ceres' cost is half the squared sum of the (transformed) residuals.
+  const double after = 2.0 * summary.final_cost;
+  if (usable && after <= report.loss_before) {
+    for (size_t k = 0; k < n; ++k) theta[static_cast<size_t>(indices[k])] = x[k];
+    report.loss_after = after;
+  }
+  report.termination = fmt::format("{} ({} iterations, {} successful): {}",
+                                   ceres::TerminationTypeToString(summary.termination_type),
+                                   summary.iterations.size() > 0 ? summary.iterations.size() - 1 : 0,
+                                   summary.num_successful_steps, summary.message);
+  report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  spdlog::info("{}: {} {:.6g} -> {:.6g} in {} evaluations, {:.2f} s ({})", report.name,
+               robust ? "Huber loss" : "squared residuals", report.loss_before, report.loss_after,
+               report.evaluations, report.seconds, report.termination);
+  return report;
+}
+
+}  // namespace xgauge

@@ -90,7 +90,9 @@ std::string readText(const fs::path& path) {
 StudyRun readRunResult(const fs::path& file, const std::string& id, const DatasetTruth& truth,
                        const std::vector<std::string>& free_dimensions) {
   const ConfigNode root = ConfigNode::loadFile(file);
-  StudyRun run{id, {}, root.at("seconds").number()};
+  StudyRun run;
+  run.id = id;
+  run.seconds = root.at("seconds").number();
   const ConfigNode dims = root.at("dimensions");
   for (size_t k = 0; k < dims.size(); ++k) {
     const ConfigNode d = dims[k];
@@ -99,7 +101,24 @@ StudyRun readRunResult(const fs::path& file, const std::string& id, const Datase
     const auto true_value = truth.dimensions.find(name);
     if (true_value == truth.dimensions.end()) d.at("name").fail("not a dimension of the dataset");
     run.error_mm[name] = d.at("value_mm").number() - true_value->second;
+    if (const auto u = d.find("expanded_uncertainty"); u && u->isNumber())
+      run.expanded_mm[name] = u->number();
   }
+  if (const auto budget = root.find("uncertainty"))
+    if (const auto combos = budget->find("combinations"))
+      for (size_t k = 0; k < combos->size(); ++k) {
+        const ConfigNode c = (*combos)[k];
+        const ConfigNode terms = c.at("terms");
+        double truth_value = 0.0;
+        for (size_t t = 0; t < terms.size(); ++t) {
+          const std::string name = terms[t].get<std::string>("dimension");
+          const auto true_value = truth.dimensions.find(name);
+          if (true_value == truth.dimensions.end()) terms[t].fail("not a dimension of the dataset");
+          truth_value += terms[t].at("coefficient").number() * true_value->second;
+        }
+        run.combinations[c.get<std::string>("expression")] = {
+            c.at("value").number() - truth_value, c.at("expanded_uncertainty").number()};
+      }
   for (const auto& name : free_dimensions)
     if (!run.error_mm.count(name)) dims.fail(fmt::format("no free dimension '{}'", name));
   return run;
@@ -252,10 +271,21 @@ std::map<std::string, std::string> PreparedShots::sha256() const {
 }
 
 std::string StudySummary::table() const {
-  std::string out = fmt::format("{:<18} {:>14} {:>14}\n", "dimension", "mean |err| mm", "max |err| mm");
+  auto figures = [](const CoverageFigures& c) {
+    return c.runs == 0 ? fmt::format(" {:>9} {:>9} {:>7}", "n/a", "n/a", "n/a")
+                       : fmt::format(" {:>9.4f} {:>8.1f}% {:>7.2f}", c.mean_u, 100.0 * c.coverage,
+                                     c.mean_normalised);
+  };
+  std::string out = fmt::format("{:<18} {:>14} {:>14} {:>9} {:>9} {:>7}\n", "dimension", "mean |err| mm",
+                                "max |err| mm", "mean U", "coverage", "|e|/U");
   for (const auto& d : dimensions)
-    out += fmt::format("{:<18} {:>14.4f} {:>14.4f}\n", d, mean_abs_mm.at(d), max_abs_mm.at(d));
-  out += fmt::format("{:<18} {:>14.4f} {:>14.4f}\n", "all", mean_abs_mm_all, max_abs_mm_all);
+    out += fmt::format("{:<18} {:>14.4f} {:>14.4f}", d, mean_abs_mm.at(d), max_abs_mm.at(d)) +
+           figures(coverage.at(d)) + "\n";
+  out += fmt::format("{:<18} {:>14.4f} {:>14.4f}", "all", mean_abs_mm_all, max_abs_mm_all) +
+         figures(pooled) + "\n";
+  for (const auto& [expression, c] : combination_coverage)
+    out += fmt::format("{:<18} {:>14.4f} {:>14}", expression, c.mean_abs, "") + figures(c) +
+           fmt::format("  (measurable combination, {} runs)\n", c.runs);
   out += fmt::format("{} runs, median {:.1f} s per run\n", runs.size(), median_seconds);
   return out;
 }
@@ -373,20 +403,61 @@ StudySummary runStudy(const StudyOptions& options) {
     csv += "\n";
   }
   summary.mean_abs_mm_all = sum_all / static_cast<double>(std::max<size_t>(1, count_all));
+  // Coverage of the reported uncertainties.
+  auto add = [](CoverageFigures& c, double error, double u) {
+    ++c.runs;
+    c.mean_u += u, c.mean_abs += std::abs(error);
+    c.coverage += std::abs(error) <= u ? 1.0 : 0.0;
+    c.mean_normalised += u > 0.0 ? std::abs(error) / u : 0.0;
+  };
+  auto finish = [](CoverageFigures& c) {
+    if (c.runs == 0) return;
+    const auto n = static_cast<double>(c.runs);
+    c.mean_u /= n, c.mean_abs /= n, c.coverage /= n, c.mean_normalised /= n;
+  };
+  for (const auto& d : summary.dimensions) summary.coverage[d] = {};
+  for (const auto& run : summary.runs) {
+    for (const auto& [name, u] : run.expanded_mm) {
+      add(summary.coverage[name], run.error_mm.at(name), u);
+      add(summary.pooled, run.error_mm.at(name), u);
+    }
+    for (const auto& [expression, eu] : run.combinations)
+      add(summary.combination_coverage[expression], eu.first, eu.second);
+  }
+  for (auto& [name, c] : summary.coverage) finish(c);
+  for (auto& [name, c] : summary.combination_coverage) finish(c);
+  finish(summary.pooled);
   std::sort(seconds.begin(), seconds.end());
   summary.median_seconds = seconds[seconds.size() / 2];
   writeFileAtomically(options.output / "study.csv", csv);
   nlohmann::json per_dim = nlohmann::json::object();
-  for (const auto& d : summary.dimensions)
+  auto coverageJson = [](const CoverageFigures& c) {
+    return nlohmann::json{{"runs_with_u", c.runs}, {"mean_u_mm", c.mean_u}, {"coverage", c.coverage},
+                          {"mean_normalised_error", c.mean_normalised}, {"mean_abs_mm", c.mean_abs}};
+  };
+  for (const auto& d : summary.dimensions) {
     per_dim[d] = {{"mean_abs_mm", summary.mean_abs_mm[d]}, {"max_abs_mm", summary.max_abs_mm[d]}};
+    per_dim[d].update(coverageJson(summary.coverage[d]));
+  }
+  nlohmann::json combos = nlohmann::json::object();
+  for (const auto& [expression, c] : summary.combination_coverage) combos[expression] = coverageJson(c);
   nlohmann::json all_runs = nlohmann::json::array();
-  for (const auto& run : summary.runs) all_runs.push_back({{"id", run.id}, {"seconds", run.seconds}, {"error_mm", run.error_mm}});
+  for (const auto& run : summary.runs) {
+    nlohmann::json combination_errors = nlohmann::json::object();
+    for (const auto& [expression, eu] : run.combinations)
+      combination_errors[expression] = {{"error_mm", eu.first}, {"expanded_uncertainty", eu.second}};
+    all_runs.push_back({{"id", run.id}, {"seconds", run.seconds}, {"error_mm", run.error_mm},
+                        {"expanded_uncertainty_mm", run.expanded_mm},
+                        {"combinations", combination_errors}});
+  }
   writeFileAtomically(options.output / "study.json",
                       nlohmann::json({{"dataset", options.dataset.string()},
                                       {"combinations", options.combinations},
                                       {"dimensions", per_dim},
                                       {"mean_abs_mm", summary.mean_abs_mm_all},
                                       {"max_abs_mm", summary.max_abs_mm_all},
+                                      {"pooled_coverage", coverageJson(summary.pooled)},
+                                      {"combinations_coverage", combos},
                                       {"median_seconds", summary.median_seconds},
                                       {"runs", all_runs}})
                               .dump(2) + "\n");

@@ -41,7 +41,21 @@ struct StudyOptions {
 struct StudyRun {
   std::string id;                          // e.g. "t00-t03" or "t00-t03+r02"
   std::map<std::string, double> error_mm;  // measured - true, free dimensions
+  // The expanded uncertainty U (k = 2) of each free dimension the run could
+  // determine (absent: not identifiable), and the measurable combinations it
+  // reported (expression -> error, U).
+  std::map<std::string, double> expanded_mm;
+  std::map<std::string, std::pair<double, double>> combinations;
   double seconds = 0.0;
+};
+
+// How honest the uncertainties of a set of runs are: the mean U, the
+// coverage (fraction of runs with |error| <= U; about 95 % for an honest U
+// with k = 2) and the mean normalised error |e| / U.
+struct CoverageFigures {
+  int runs = 0;  // runs with a U
+  double mean_u = 0.0, coverage = 0.0, mean_normalised = 0.0;
+  double mean_abs = 0.0;
 };
 
 struct StudySummary {
@@ -49,6 +63,10 @@ struct StudySummary {
   std::vector<StudyRun> runs;
   std::map<std::string, double> mean_abs_mm, max_abs_mm;
   double mean_abs_mm_all = 0.0, max_abs_mm_all = 0.0;
+  // Per free dimension, per measurable combination, and pooled over every
+  // dimension of every run that has a U.
+  std::map<std::string, CoverageFigures> coverage, combination_coverage;
+  CoverageFigures pooled;
   double median_seconds = 0.0;
   // The thesis-style table as text.
   std::string table() const;

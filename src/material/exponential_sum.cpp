@@ -81,6 +81,18 @@ nlohmann::json ExponentialSum::toJson() const {
   return out;
 }
 
+double ExponentialSum::rateScaleFor(double transmission, double longest_mm) const {
+  double slope = 0.0;
+  constexpr int kSteps = 400;
+  for (int k = 0; k <= kSteps; ++k) {
+    const double x = longest_mm * k / kSteps;
+    double d = 0.0;
+    for (const auto& t : terms_) d += t.weight * t.mu_per_mm * std::exp(-t.mu_per_mm * x);
+    slope = std::max(slope, x * d);
+  }
+  return slope > 0.0 ? transmission / slope : 0.0;
+}
+
 ExponentialSum ExponentialSum::withScaledRates(double relative) const {
   std::vector<ExponentialTerm> terms = terms_;
   for (auto& t : terms) t.mu_per_mm *= 1.0 + relative;

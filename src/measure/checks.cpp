@@ -96,29 +96,27 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
     // The residual image of the roi, unscaled.
     const double unscale = std::sqrt(static_cast<double>(roi.area()));
     Image residual(roi.width, roi.height);
-    double sum_abs = 0.0;
+    double sum_abs = 0.0, sum_squares = 0.0;
     for (int y = 0; y < roi.height; ++y)
       for (int x = 0; x < roi.width; ++x) {
         const double v =
             unscale * fit.residuals(static_cast<Eigen::Index>(segment.first) +
                                     static_cast<Eigen::Index>(y) * roi.width + x);
         residual(x, y) = static_cast<float>(v);
-        sum_abs += std::abs(v);
+        sum_abs += std::abs(v), sum_squares += v * v;
       }
     RadiographCheck rc;
     rc.name = spec.name;
     rc.noise_sigma = neighbourNoise(measured, white.intersect(measured.rect()));
     rc.mean_abs_residual = sum_abs / static_cast<double>(roi.area());
-    rc.misfit_ratio = rc.noise_sigma > 0.0
-                          ? rc.mean_abs_residual / (rc.noise_sigma * std::sqrt(2.0 / std::numbers::pi))
-                          : 0.0;
+    rc.rms_residual = std::sqrt(sum_squares / static_cast<double>(roi.area()));
+    rc.misfit_ratio = rc.noise_sigma > 0.0 ? rc.rms_residual / rc.noise_sigma : 0.0;
     if (rc.misfit_ratio > kMisfitRatio)
       check.warnings.push_back(fmt::format(
-          "{}: the fit leaves a mean |residual| of {:.3g} per pixel, {:.1f} times what the noise "
+          "{}: the fit leaves an rms residual of {:.3g} per pixel, {:.1f} times what the noise "
           "of its open beam explains ({:.3g}): the part, the material, the scatter or the "
-          "machine may differ from their models",
-          spec.name, rc.mean_abs_residual, rc.misfit_ratio,
-          rc.noise_sigma * std::sqrt(2.0 / std::numbers::pi)));
+          "machine may differ from their models, or a dimension is held at a wrong value",
+          spec.name, rc.rms_residual, rc.misfit_ratio, rc.noise_sigma));
     check.radiographs.push_back(rc);
 
     // Residual regions.

@@ -10,12 +10,61 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace xgauge {
 
 namespace {
 
 constexpr double kStep = 2e-3;  // mm or deg (least_squares.h)
+// The linearisation's steps move the part's projected edges by about this
+// many pixels of the level (least_squares.h).
+constexpr double kLinearStepPx = 0.2;
+
+// Each parameter's step for the linearisation at theta, from the size of a
+// pixel of `level` at the part (mm): a dimension or a lateral position moves
+// an edge by it, a depth changes the magnification of the part's outline by
+// it, an angle turns the outline's ends by it.
+std::vector<double> linearSteps(const ForwardModel& model, std::span<const double> theta,
+                                const std::vector<int>& indices, int level) {
+  const Machine machine = model.machineAt(level);
+  const double d = machine.source_detector_distance_mm;
+  const double z = model.pose(theta, 0).apply(model.referenceCentre()).z();
+  const double magnification = d / std::max(1e-6, d - z);
+  const double edge_mm = kLinearStepPx * machine.pitch_u_mm / magnification;
+  const double reach_mm = std::max(1.0, 0.5 * model.partSizeMm());
+  std::vector<double> steps;
+  for (int i : indices) {
+    const std::string& name = model.parameters()[i].name;
+    switch (model.kind(i)) {
+      case ParameterKind::kDimension:
+        steps.push_back(edge_mm);  // mm; a dimension in degrees turns by as much as a rotation
+        if (model.part().dimensions()[static_cast<size_t>(i)].unit == "deg")
+          steps.back() = edge_mm / reach_mm * kRadToDeg;
+        break;
+      case ParameterKind::kPosition:
+        steps.push_back(name.ends_with("/z") ? edge_mm * (d - z) / reach_mm : edge_mm);
+        break;
+      case ParameterKind::kRotation:
+        steps.push_back(edge_mm / reach_mm * kRadToDeg);
+        break;
+      case ParameterKind::kAxis: {
+        double distance = 10.0;
+        for (int r = 0; r < model.radiographCount(); ++r)
+          if (name.starts_with(model.spec(r).name + "/")) distance = std::max(1.0, model.spec(r).distance_mm);
+        steps.push_back(edge_mm / distance * kRadToDeg);
+        break;
+      }
+      case ParameterKind::kMaterial:
+        steps.push_back(2e-3);
+        break;
+    }
+  }
+  return steps;
+}
+// The smallest noise sigma (normalized intensity) the robust loss assumes: a
+// tenth of what the quietest flat panels show per pixel.
+constexpr double kNoiseFloor = 1e-4;
 
 // Huber's loss as a residual: sign(r) sqrt(rho(r^2)) and its derivative.
 double robustResidual(double r, double a, double* derivative) {
@@ -49,7 +98,7 @@ class ImageResiduals final : public ceres::CostFunction {
  public:
   ImageResiduals(ForwardModel& model, std::vector<double> theta, std::vector<int> indices,
                  std::vector<int> radiographs, std::vector<ResidualSegment> segments, int level,
-                 int samples, size_t count, ProgressBar& progress)
+                 int samples, size_t count, ProgressBar* progress)
       : model_(model), theta_(std::move(theta)), indices_(std::move(indices)),
         radiographs_(std::move(radiographs)), segments_(std::move(segments)), level_(level),
         samples_(samples), progress_(progress) {
@@ -86,7 +135,7 @@ class ImageResiduals final : public ceres::CostFunction {
  private:
   bool render(const std::vector<double>& theta, std::vector<double>& out) const {
     ++evaluations_;
-    progress_.advance();
+    if (progress_) progress_->advance();
     return model_.residuals(theta, level_, samples_, radiographs_, out) &&
            out.size() == static_cast<size_t>(num_residuals());
   }
@@ -103,7 +152,7 @@ class ImageResiduals final : public ceres::CostFunction {
   std::vector<int> indices_, radiographs_;
   std::vector<ResidualSegment> segments_;
   int level_, samples_;
-  ProgressBar& progress_;
+  ProgressBar* progress_;  // null: quiet
   mutable std::vector<double> r_, derivative_;
   mutable int evaluations_ = 0;
 };
@@ -139,9 +188,13 @@ std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<con
     if (!model.residuals(theta, level, samples, only, r) || r.empty()) continue;
     for (double& v : r) v = std::abs(v);
     std::nth_element(r.begin(), r.begin() + static_cast<ptrdiff_t>(r.size() / 2), r.end());
-    // A perfect fit (noise-free simulation) has a zero median: keep the
-    // threshold positive so that the loss stays a loss.
-    segment.threshold = std::max(1.345 * 1.4826 * r[r.size() / 2], 1e-12);
+    // The residuals are scaled by 1 / sqrt(pixels) (ForwardModel::residuals).
+    // A perfect fit (a noise-free simulation) has a zero median: the scale
+    // never drops below kNoiseFloor, so that such a fit is least squares
+    // rather than a degenerate L1 that weighs every pixel by 1 / |r|.
+    const double unscale = std::sqrt(static_cast<double>(segment.roi.area()));
+    const double sigma = std::max(1.4826 * r[r.size() / 2] * unscale, kNoiseFloor);
+    segment.threshold = 1.345 * sigma / unscale;
   }
   return segments;
 }
@@ -158,25 +211,35 @@ bool linearize(ForwardModel& model, std::span<const double> theta, const std::ve
   const auto m = static_cast<Eigen::Index>(r.size());
   out.residuals = Eigen::Map<const Eigen::VectorXd>(r.data(), m);
   out.jacobian.resize(m, static_cast<Eigen::Index>(indices.size()));
-  std::vector<double> shifted(theta.begin(), theta.end());
+  std::vector<double> shifted(theta.begin(), theta.end()), back_r;
+  const std::vector<double> steps = linearSteps(model, theta, indices, level);
+  out.steps = steps;
   for (size_t k = 0; k < indices.size(); ++k) {
     const auto i = static_cast<size_t>(indices[k]);
-    const double h = theta[i] + kStep <= model.upper()[i] ? kStep : -kStep;
-    shifted[i] = theta[i] + h;
-    const bool ok = model.residuals(shifted, level, samples, radiographs, shifted_r) &&
-                    shifted_r.size() == r.size();
+    const double h = steps[k];
+    const bool up = theta[i] + h <= model.upper()[i];
+    const bool down = theta[i] - h >= model.lower()[i];
+    shifted[i] = theta[i] + (up ? h : 0.0);
+    bool ok = model.residuals(shifted, level, samples, radiographs, shifted_r) &&
+              shifted_r.size() == r.size();
+    shifted[i] = theta[i] - (down ? h : 0.0);
+    ok = ok && model.residuals(shifted, level, samples, radiographs, back_r) &&
+         back_r.size() == r.size();
     shifted[i] = theta[i];
     if (!ok) return false;
+    const double span = (up ? h : 0.0) + (down ? h : 0.0);
+    if (!(span > 0.0)) return false;
     for (Eigen::Index j = 0; j < m; ++j)
       out.jacobian(j, static_cast<Eigen::Index>(k)) =
-          (shifted_r[static_cast<size_t>(j)] - r[static_cast<size_t>(j)]) / h;
+          (shifted_r[static_cast<size_t>(j)] - back_r[static_cast<size_t>(j)]) / span;
   }
   return true;
 }
 
 StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
                               const std::vector<int>& indices, const std::vector<int>& radiographs,
-                              int level, int samples, int max_iterations, bool robust) {
+                              int level, int samples, int max_iterations, bool robust,
+                              bool quiet) {
   const auto start = std::chrono::steady_clock::now();
   StageReport report;
   report.name = robust ? "joint, robust least squares" : "joint, least squares";
@@ -199,9 +262,10 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
     const auto i = static_cast<size_t>(indices[k]);
     x[k] = std::clamp(theta[i], model.lower()[i], model.upper()[i]);
   }
-  ProgressBar progress(report.name, max_iterations * static_cast<int>(n + 2));
+  std::optional<ProgressBar> progress;
+  if (!quiet) progress.emplace(report.name, max_iterations * static_cast<int>(n + 2));
   ImageResiduals cost(model, theta, indices, radiographs, segments, level, samples, r.size(),
-                      progress);
+                      progress ? &*progress : nullptr);
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
@@ -224,7 +288,7 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
   options.minimizer_progress_to_stdout = false;
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
-  progress.finish();
+  if (progress) progress->finish();
 
   report.evaluations += cost.evaluations();
   report.loss_after = report.loss_before;
@@ -242,7 +306,8 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
                                    summary.iterations.size() > 0 ? summary.iterations.size() - 1 : 0,
                                    summary.num_successful_steps, summary.message);
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  spdlog::info("{}: {} {:.6g} -> {:.6g} in {} evaluations, {:.2f} s ({})", report.name,
+  if (!quiet)
+    spdlog::info("{}: {} {:.6g} -> {:.6g} in {} evaluations, {:.2f} s ({})", report.name,
                robust ? "Huber loss" : "squared residuals", report.loss_before, report.loss_after,
                report.evaluations, report.seconds, report.termination);
   return report;

@@ -90,7 +90,8 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
   nlohmann::json fits = nlohmann::json::array();
   for (const RadiographCheck& c : result.check.radiographs)
     fits.push_back({{"name", c.name}, {"noise_sigma", c.noise_sigma},
-                    {"mean_abs_residual", c.mean_abs_residual}, {"misfit_ratio", c.misfit_ratio}});
+                    {"mean_abs_residual", c.mean_abs_residual}, {"rms_residual", c.rms_residual},
+                    {"misfit_ratio", c.misfit_ratio}});
   bool toleranced = false;
   for (const auto& d : result.dimensions) toleranced |= d.decision.has_value();
   nlohmann::json radiographs = nlohmann::json::array();

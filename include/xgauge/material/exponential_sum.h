@@ -54,6 +54,11 @@ class ExponentialSum {
   void setTransmissionUncertainty(double u) { transmission_uncertainty_ = u; }
   // The same curve with every rate scaled by (1 + relative).
   ExponentialSum withScaledRates(double relative) const;
+  // The relative scale of the rates that moves the curve by `transmission`
+  // at the path in [0, longest_mm] where a scale moves it most:
+  // transmission / max_x |x sum_k a_k mu_k exp(-mu_k x)| (0 when no path
+  // attenuates).
+  double rateScaleFor(double transmission, double longest_mm) const;
 
  private:
   std::vector<ExponentialTerm> terms_;

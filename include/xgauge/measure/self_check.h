@@ -1,9 +1,11 @@
 // A measurement's checks of itself (docs/method.md, "Self-checks"): what
 // turns a silent failure into a warning in the result and the table.
 //   - a free parameter at (within 1e-4 of its range from) a bound;
-//   - a fit worse than the noise explains: the mean |residual| per pixel
-//     against the mean |noise| measured in the radiograph's own open-beam
-//     region, above kMisfitRatio;
+//   - a fit worse than the noise explains: the rms residual per pixel
+//     against the noise sigma measured in the radiograph's own open-beam
+//     region, above kMisfitRatio (a prism jaw held 0.6 mm too wide by its
+//     bounds: 1.3; a clean replica radiograph: below 1, the noise in the
+//     part's shadow being lower than in the open beam);
 //   - a radiograph whose residuals are kWorseRatio times the others' median;
 //   - residual regions: connected areas (8-neighbours, one sign) where the
 //     3 x 3 mean of the residual exceeds kRegionSigmas robust sigmas of that
@@ -19,7 +21,7 @@
 
 namespace xgauge {
 
-inline constexpr double kMisfitRatio = 2.0;
+inline constexpr double kMisfitRatio = 1.25;
 inline constexpr double kWorseRatio = 2.0;
 inline constexpr double kRegionSigmas = 5.0;
 inline constexpr int kRegionMinPixels = 6;
@@ -39,7 +41,11 @@ struct RadiographCheck {
   std::string name;
   double noise_sigma = 0.0;         // of one pixel of the fit's level, open beam
   double mean_abs_residual = 0.0;   // per pixel of the roi at the fit's level
-  double misfit_ratio = 0.0;        // mean |residual| / (noise sigma sqrt(2 / pi))
+  double rms_residual = 0.0;        // per pixel of the roi at the fit's level
+  // rms residual / noise sigma: 1 for a fit that leaves only noise; a wrong
+  // dimension leaves a band of large residuals along an edge, which the rms
+  // weighs as it should and a mean |residual| over the whole roi dilutes.
+  double misfit_ratio = 0.0;
 };
 
 struct SelfCheck {

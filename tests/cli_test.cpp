@@ -5,7 +5,9 @@
 
 #include "xgauge/image/tiff.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 #include <tiffio.h>
 
 #include <array>
@@ -398,6 +400,48 @@ TEST_F(CalibratePart, InitialRegionOutsideTheImage) {
 
 TEST_F(CalibratePart, MaterialIsNotAnInput) {
   expectFailure(job("[50, 35, 10, 10]", R"(, "material": "m.json")"), "leave \"material\" out");
+}
+
+}  // namespace
+}  // namespace xgauge
+
+namespace xgauge {
+namespace {
+
+// The exit status tells a line script the verdicts (measure/tolerance.h):
+// the same measurement judged against three tolerance zones built around
+// its own value and U.
+TEST_F(MeasureJob, ExitStatusGivesTheVerdicts) {
+  const CommandResult first = run("measure " + job() + " -o " + out("plain") + " -q");
+  ASSERT_EQ(first.status, 0) << first.output;
+  std::ifstream in(out("plain") + "/result.json");
+  const nlohmann::json result = nlohmann::json::parse(in);
+  const nlohmann::json& size_x = result.at("dimensions").at(0);
+  ASSERT_EQ(size_x.at("name"), "size_x");
+  ASSERT_TRUE(size_x.at("expanded_uncertainty").is_number()) << size_x.dump();
+  const double value = size_x.at("value_mm").get<double>();
+  const double u = size_x.at("expanded_uncertainty").get<double>();
+  EXPECT_FALSE(size_x.contains("verdict"));  // no tolerance, no verdict
+  auto verdict = [&](double nominal, double lower, double upper, const std::string& name) {
+    const std::string tolerances = fmt::format(
+        R"(, "tolerances": {{"size_x": {{"nominal": {}, "lower": {}, "upper": {}}}}})", nominal,
+        lower, upper);
+    const CommandResult r = run("measure " + job("", tolerances) + " -o " + out(name) + " -q");
+    std::ifstream file(out(name) + "/result.json");
+    const nlohmann::json judged = nlohmann::json::parse(file);
+    EXPECT_EQ(judged.at("dimensions").at(0).at("value_mm").get<double>(), value);  // deterministic
+    EXPECT_TRUE(judged.at("decision_rule").is_string());
+    return std::pair{r.status, judged.at("dimensions").at(0).at("verdict").get<std::string>()};
+  };
+  // Inside the zone shrunk by U: conforms, exit 0.
+  EXPECT_EQ(verdict(value, -(2.0 * u + 0.5), 2.0 * u + 0.5, "conforms"),
+            (std::pair<int, std::string>{0, "conforms"}));
+  // Outside the zone widened by U: does not conform, exit 3.
+  EXPECT_EQ(verdict(value + 1.0 + 2.0 * u, -0.5, 0.5, "nonconforming"),
+            (std::pair<int, std::string>{3, "does not conform"}));
+  // Inside the zone but within U of its upper limit: inconclusive, exit 2.
+  EXPECT_EQ(verdict(value, -(2.0 * u + 0.5), 0.5 * u + 1e-6, "inconclusive"),
+            (std::pair<int, std::string>{2, "inconclusive"}));
 }
 
 }  // namespace

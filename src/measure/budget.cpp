@@ -109,8 +109,12 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   std::vector<int> radiographs_all;
   for (const ResidualSegment& s : fit.segments) radiographs_all.push_back(s.radiograph);
   const bool robust = model.job().loss == LossKind::kMeanAbsolute;
+  const bool material_free = !model.materialIndices().empty();
   auto resolve = [&](const std::function<std::unique_ptr<ForwardModel>(double)>& moved_model,
                      Influence influence) {
+    // A model with the material free (a calibration) has parameters a moved
+    // model would not: its influences are not propagated.
+    if (material_free) return;
     const std::unique_ptr<ForwardModel> moved = moved_model(1.0);
     std::vector<double> solved(theta.begin(), theta.end());
     const StageReport report = solveLeastSquares(*moved, solved, fit.indices, radiographs_all,
@@ -131,7 +135,9 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   };
   const MeasurementInputs& inputs = model.inputs();
   if (!model.materialIndices().empty()) {
-    budget.notes.push_back("material: fitted with the dimensions, its uncertainty is statistical");
+    budget.notes.push_back(
+        "the material is fitted with the dimensions (a calibration): only the statistical part "
+        "is given");
   } else {
     // The scale of the rates that moves the curve by u at the worst path:
     // dI/d(scale) = -x sum a_k mu_k exp(-mu_k x).

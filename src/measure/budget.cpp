@@ -7,8 +7,6 @@
 #include <Eigen/Eigenvalues>
 
 #include <cmath>
-#include <functional>
-#include <memory>
 #include <map>
 
 namespace xgauge {
@@ -16,7 +14,8 @@ namespace xgauge {
 namespace {
 
 constexpr int kBlockPx = 16;
-constexpr int kResolveIterations = 15;  // from theta, for an influence moved by u      // cluster size of the sandwich (uncertainty.h)
+constexpr int kResolveIterations = 15;  // from theta, for an influence moved by u
+constexpr int kResolveWidthPx = 1024;   // level of those re-solves (at least the fit's)      // cluster size of the sandwich (uncertainty.h)
 constexpr double kNullRatio = 1e-9;  // eigenvalue of the scaled normal matrix below which a
                                      // direction is taken as not determined at all
 
@@ -93,34 +92,39 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   const double small_sample = static_cast<double>(m) / static_cast<double>(std::max<Eigen::Index>(1, m - n));
   const Eigen::MatrixXd statistical = small_sample * a_inverse * b * a_inverse;
 
-  // The influences, each by re-simulations at theta.
+  // The influences. Each is a model moved by its u; the fit is solved again
+  // with it (Ceres, as the final stage, from theta) and the shift of every
+  // parameter, including what the poses absorb, is the influence's effect.
+  // A linearised re-solve, -A^-1 J^T W dr, was tried first: on a cuboid seen
+  // as a translated pair it moved the sides by 13 um per 0.5 mm of
+  // source-detector distance, where a re-solve (and a measurement of
+  // radiographs taken with the distance changed) moves them by none; the
+  // pose absorbs the change along a weakly determined direction that the
+  // linearisation does not follow. The re-solves run on the level about
+  // 1024 pixels wide (a quarter of the pixels of the final stage's), each
+  // against the unmoved model solved there from the same start, so that
+  // only the influence's shift remains.
   std::vector<int> radiographs;
   for (const ResidualSegment& s : fit.segments) radiographs.push_back(s.radiograph);
-  std::vector<Influence> influences;
-  // simulate(amount): a model with the influence moved by amount * u. The
-  // fit is solved again from theta with it (Ceres, as the final stage, a few
-  // iterations from so near): the shift of every parameter, including what
-  // the poses absorb. A linearised re-solve, -A^-1 J^T W dr, was tried
-  // first; on a cuboid seen as a translated pair it moved the sides by 13 um
-  // per 0.5 mm of source-detector distance where a re-solve (and a
-  // measurement of radiographs taken with the distance changed) moves them
-  // by none: the pose absorbs the change along a weakly determined
-  // direction that a linearisation does not follow.
-  std::vector<int> radiographs_all;
-  for (const ResidualSegment& s : fit.segments) radiographs_all.push_back(s.radiograph);
   const bool robust = model.job().loss == LossKind::kMeanAbsolute;
+  const int level = std::max(fit.level, model.levelForWidth(kResolveWidthPx));
+  const int samples = fit.samples;
+  std::vector<Influence> influences;
   const bool material_free = !model.materialIndices().empty();
-  auto resolve = [&](const std::function<std::unique_ptr<ForwardModel>(double)>& moved_model,
-                     Influence influence) {
-    // A model with the material free (a calibration) has parameters a moved
-    // model would not: its influences are not propagated.
-    if (material_free) return;
-    const std::unique_ptr<ForwardModel> moved = moved_model(1.0);
-    std::vector<double> solved(theta.begin(), theta.end());
-    const StageReport report = solveLeastSquares(*moved, solved, fit.indices, radiographs_all,
-                                                 fit.level, fit.samples, kResolveIterations,
-                                                 robust, /*quiet=*/true);
-    if (report.loss_after > report.loss_before || report.termination == "start point invalid") {
+  auto solveFrom = [&](ForwardModel& with, std::vector<double>& solved) {
+    solved.assign(theta.begin(), theta.end());
+    const StageReport report = solveLeastSquares(with, solved, fit.indices, radiographs, level,
+                                                 samples, kResolveIterations, robust,
+                                                 /*quiet=*/true);
+    return report.termination != "start point invalid";
+  };
+  std::vector<double> reference;
+  // A model with the material free (a calibration) has parameters a moved
+  // model would not: its influences are not propagated.
+  const bool propagate = !material_free && solveFrom(model, reference);
+  auto resolve = [&](ForwardModel& moved, Influence influence) {
+    std::vector<double> solved;
+    if (!solveFrom(moved, solved)) {
       budget.notes.push_back(fmt::format("{}: the fit with it moved by u could not be solved; "
                                          "left out",
                                          influence.name));
@@ -129,39 +133,37 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     influence.delta_theta.resize(n);
     for (Eigen::Index k = 0; k < n; ++k) {
       const auto i = static_cast<size_t>(fit.indices[static_cast<size_t>(k)]);
-      influence.delta_theta(k) = solved[i] - theta[i];
+      influence.delta_theta(k) = solved[i] - reference[i];
     }
     influences.push_back(std::move(influence));
   };
   const MeasurementInputs& inputs = model.inputs();
-  if (!model.materialIndices().empty()) {
+  if (material_free) {
     budget.notes.push_back(
         "the material is fitted with the dimensions (a calibration): only the statistical part "
         "is given");
+  } else if (!propagate) {
+    budget.notes.push_back("the fit could not be solved again on the coarser level: only the "
+                           "statistical part is given");
   } else {
     // The scale of the rates that moves the curve by u at the worst path:
     // dI/d(scale) = -x sum a_k mu_k exp(-mu_k x).
     const ExponentialSum material = model.material();
     const double u = material.transmissionUncertainty();
     const double scale = material.rateScaleFor(u, model.partSizeMm());
-    if (scale > 0.0)
-      resolve(
-          [&](double amount) {
-            return std::make_unique<ForwardModel>(inputs, material.withScaledRates(amount * scale));
-          },
-          {"material", fmt::format("transmission curve, u = {:.2g}", u), "transmission", u, {}});
+    if (scale > 0.0) {
+      ForwardModel moved(inputs, material.withScaledRates(scale));
+      resolve(moved, {"material", fmt::format("transmission curve, u = {:.2g}", u), "transmission", u, {}});
+    }
   }
-  // change(inputs, amount) moves the influence by amount * u. A model keeps a
-  // reference to its inputs: they live as long as the budget is made.
-  std::vector<std::unique_ptr<MeasurementInputs>> moved_inputs;
+  // change(inputs, amount) moves the influence by amount * u.
   auto withInputs = [&](const std::string& name, const std::string& quantity,
                         const std::string& unit, double u, auto change) {
-    if (!(u > 0.0)) return;
-    moved_inputs.push_back(std::make_unique<MeasurementInputs>(inputs));
-    MeasurementInputs& moved = *moved_inputs.back();
+    if (!(u > 0.0) || !propagate) return;
+    MeasurementInputs moved = inputs;  // the model below keeps a reference to it
     change(moved, 1.0);
-    resolve([&](double) { return std::make_unique<ForwardModel>(moved, model.material()); },
-            {name, quantity, unit, u, {}});
+    ForwardModel moved_model(moved, model.material());
+    resolve(moved_model, {name, quantity, unit, u, {}});
   };
   const ScatterModel& scatter = inputs.job.scatter;
   if (scatter.enabled()) {

@@ -14,8 +14,8 @@ namespace xgauge {
 namespace {
 
 constexpr int kBlockPx = 16;
-constexpr int kResolveIterations = 15;  // from theta, for an influence moved by u
-constexpr int kResolveWidthPx = 1024;   // level of those re-solves (at least the fit's)      // cluster size of the sandwich (uncertainty.h)
+constexpr int kResolveIterations = 10;  // from theta, for an influence moved by u
+constexpr int kResolveWidthPx = 512;    // level of those re-solves (at least the fit's)      // cluster size of the sandwich (uncertainty.h)
 constexpr double kNullRatio = 1e-9;  // eigenvalue of the scaled normal matrix below which a
                                      // direction is taken as not determined at all
 
@@ -101,9 +101,10 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   // radiographs taken with the distance changed) moves them by none; the
   // pose absorbs the change along a weakly determined direction that the
   // linearisation does not follow. The re-solves run on the level about
-  // 1024 pixels wide (a quarter of the pixels of the final stage's), each
-  // against the unmoved model solved there from the same start, so that
-  // only the influence's shift remains.
+  // 512 pixels wide (a sixteenth of the final stage's pixels at 4096^2:
+  // an influence moves the whole outline or the whole intensity scale, which
+  // a coarse level sees as well), each against the unmoved model solved
+  // there from the same start, so that only the influence's shift remains.
   std::vector<int> radiographs;
   for (const ResidualSegment& s : fit.segments) radiographs.push_back(s.radiograph);
   const bool robust = model.job().loss == LossKind::kMeanAbsolute;

@@ -13,24 +13,8 @@
 
 namespace xgauge {
 
-void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,
-                             const std::filesystem::path& folder) {
-  createOutputFolder(folder);
+nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResult& result) {
   const MeasurementJob& job = model.job();
-
-  // Final simulated radiographs and the differences over each roi.
-  for (int r = 0; r < model.radiographCount(); ++r) {
-    const PreparedRadiograph& rad = model.radiograph(r);
-    const std::string& name = model.spec(r).name;
-    const Image simulated = model.simulate(result.theta, r, 0, 2, model.machine().detectorRect());
-    writeTiff(folder / ("simulated_" + name + ".tif"), simulated, TiffFormat::kFloat32);
-    const PixelRect roi = rad.rois.front();
-    const Image difference = differenceImage(simulated.crop(roi), rad.levels.front(), roi);
-    writeTiff(folder / ("difference_" + name + ".tif"), difference, TiffFormat::kFloat32);
-    writeDifferencePng(folder / ("difference_" + name + ".png"), difference);
-  }
-
-  // result.json.
   nlohmann::json dims = nlohmann::json::array();
   for (const auto& d : result.dimensions) {
     nlohmann::json item = {{"name", d.name}, {"value_mm", d.value}, {"free", d.free}, {"unit", d.unit}};
@@ -117,7 +101,7 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
   // The digests of the bytes the loader parsed (measure/inputs.h), so that
   // no input is read twice.
   nlohmann::json inputs = model.inputs().sha256;
-  const nlohmann::json out = {{"software", "xgauge " XGAUGE_VERSION_STRING},
+  return {{"software", "xgauge " XGAUGE_VERSION_STRING},
                               {"job", job.file.string()},
                               {"schedule", scheduleName(job.schedule)},
                               {"loss", lossKindName(job.loss)},
@@ -133,7 +117,25 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
                               {"seconds", result.seconds},
                               {"stages", stages},
                               {"inputs_sha256", inputs}};
-  writeFileAtomically(folder / "result.json", out.dump(2) + "\n");
+}
+
+void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,
+                             const std::filesystem::path& folder) {
+  createOutputFolder(folder);
+
+  // Final simulated radiographs and the differences over each roi.
+  for (int r = 0; r < model.radiographCount(); ++r) {
+    const PreparedRadiograph& rad = model.radiograph(r);
+    const std::string& name = model.spec(r).name;
+    const Image simulated = model.simulate(result.theta, r, 0, 2, model.machine().detectorRect());
+    writeTiff(folder / ("simulated_" + name + ".tif"), simulated, TiffFormat::kFloat32);
+    const PixelRect roi = rad.rois.front();
+    const Image difference = differenceImage(simulated.crop(roi), rad.levels.front(), roi);
+    writeTiff(folder / ("difference_" + name + ".tif"), difference, TiffFormat::kFloat32);
+    writeDifferencePng(folder / ("difference_" + name + ".png"), difference);
+  }
+
+  writeFileAtomically(folder / "result.json", measurementJson(model, result).dump(2) + "\n");
 }
 
 }  // namespace xgauge

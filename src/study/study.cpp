@@ -362,14 +362,7 @@ StudySummary runStudy(const StudyOptions& options) {
       if (options.images) {
         writeMeasurementOutputs(model, result, folder);
       } else {
-        nlohmann::json dims = nlohmann::json::array();
-        for (const auto& d : result.dimensions)
-          dims.push_back({{"name", d.name}, {"value_mm", d.value}, {"free", d.free}});
-        writeFileAtomically(result_file, nlohmann::json({{"dimensions", dims},
-                                                         {"seconds", result.seconds},
-                                                         {"evaluations", result.evaluations},
-                                                         {"total_loss", result.total_loss}})
-                                                 .dump(2) + "\n");
+        writeFileAtomically(result_file, measurementJson(model, result).dump(2) + "\n");
       }
       writeFileAtomically(fingerprint_file, fingerprint + "\n");
       run = readRunResult(result_file, runs[i].id, truth, free_dimensions);

@@ -17,4 +17,9 @@ namespace xgauge {
 void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,
                              const std::filesystem::path& folder);
 
+// The contents of result.json (docs/formats.md): dimensions with their U,
+// tolerances and verdicts, the uncertainty budget, the self-checks' warnings
+// and residual regions, poses, stages and the inputs' SHA-256.
+nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResult& result);
+
 }  // namespace xgauge

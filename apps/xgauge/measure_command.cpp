@@ -4,8 +4,8 @@
 #include "xgauge/core/config.h"
 #include "xgauge/core/output.h"
 #include "xgauge/material/exponential_fit.h"
-#include "xgauge/measure/job.h"
 #include "xgauge/measure/inputs.h"
+#include "xgauge/measure/job.h"
 #include "xgauge/measure/measure.h"
 #include "xgauge/measure/model.h"
 #include "xgauge/measure/truth.h"
@@ -20,9 +20,11 @@
 namespace xgauge::cli {
 
 void addMeasureCommand(CLI::App& app, MeasureArguments& args) {
-  CLI::App* cmd = app.add_subcommand("measure", "Measure a part's dimensions from radiographs (a job file)");
+  CLI::App* cmd =
+      app.add_subcommand("measure", "Measure a part's dimensions from radiographs (a job file)");
   cmd->add_option("job", args.job, "Measurement job (JSON)")->required();
-  cmd->add_option("-o,--output", args.output, "Output folder: result.json, simulated and difference images, log")
+  cmd->add_option("-o,--output", args.output,
+                  "Output folder: result.json, simulated and difference images, log")
       ->required();
   cmd->add_option("--truth", args.truth, "A virtual lab's truth.json: also print the errors");
 }
@@ -51,8 +53,9 @@ int runMeasure(const MeasureArguments& args) {
   table += "\n";
   for (const auto& d : result.dimensions) {
     table += fmt::format("{:<18} {:>10.4f} {:>9}", d.name + (d.free ? "" : " (fixed)"), d.value,
-                         !d.free ? "" : d.expanded_uncertainty ? fmt::format("{:.4f}", *d.expanded_uncertainty)
-                                                              : "n/a");
+                         !d.free                  ? ""
+                         : d.expanded_uncertainty ? fmt::format("{:.4f}", *d.expanded_uncertainty)
+                                                  : "n/a");
     if (toleranced)
       table += d.tolerance ? fmt::format(" [{:>8.4f},{:>9.4f}]  {:<16}", d.tolerance->lowerLimit(),
                                          d.tolerance->upperLimit(),
@@ -64,9 +67,10 @@ int runMeasure(const MeasureArguments& args) {
     table += "\n";
   }
   for (const auto& c : result.uncertainty.combinations)
-    table += fmt::format("{:<18} {:>10.4f} {:>9.4f}  (measurable combination of dimensions that are "
-                         "not determined alone)\n",
-                         c.expression, c.value, c.expanded);
+    table += fmt::format(
+        "{:<18} {:>10.4f} {:>9.4f}  (measurable combination of dimensions that are "
+        "not determined alone)\n",
+        c.expression, c.value, c.expanded);
   if (toleranced) table += fmt::format("Verdicts: {}.\n", kDecisionRule);
   if (!result.check.warnings.empty()) {
     table += fmt::format("{} warning(s):\n", result.check.warnings.size());
@@ -96,10 +100,12 @@ void runMaterial(const MaterialArguments& args) {
   checkOutputFile(args.output);
   const DatasetTruth truth = DatasetTruth::load(args.truth);
   ExponentialFitReport report;
-  const ExponentialSum material = fitExponentialSum(truth.path_mm, truth.transmission, args.terms, {}, &report);
+  const ExponentialSum material =
+      fitExponentialSum(truth.path_mm, truth.transmission, args.terms, {}, &report);
   nlohmann::json out = material.toJson();
-  out["description"] = fmt::format("{} exponentials fitted to the transmission table of {} (RMS {:.2e}, max {:.2e})",
-                                   args.terms, args.truth, report.rms_residual, report.max_abs_residual);
+  out["description"] =
+      fmt::format("{} exponentials fitted to the transmission table of {} (RMS {:.2e}, max {:.2e})",
+                  args.terms, args.truth, report.rms_residual, report.max_abs_residual);
   writeFileAtomically(args.output, out.dump(2) + "\n");
   spdlog::info("wrote {}: RMS residual {:.2e}, max {:.2e}", args.output, report.rms_residual,
                report.max_abs_residual);

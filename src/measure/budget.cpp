@@ -1,13 +1,11 @@
 #include "budget.h"
 
 #include <fmt/format.h>
-#include <fmt/ranges.h>
-#include <spdlog/spdlog.h>
 
 #include <Eigen/Eigenvalues>
 
+#include <algorithm>
 #include <cmath>
-#include <map>
 
 namespace xgauge {
 
@@ -15,9 +13,10 @@ namespace {
 
 constexpr int kBlockPx = 16;
 constexpr int kResolveIterations = 10;  // from theta, for an influence moved by u
-constexpr int kResolveWidthPx = 512;    // level of those re-solves (at least the fit's)      // cluster size of the sandwich (uncertainty.h)
-constexpr double kNullRatio = 1e-9;  // eigenvalue of the scaled normal matrix below which a
-                                     // direction is taken as not determined at all
+constexpr int kResolveWidthPx = 512;    // level of those re-solves (at least the fit's)      //
+                                        // cluster size of the sandwich (uncertainty.h)
+constexpr double kNullRatio = 1e-9;     // eigenvalue of the scaled normal matrix below which a
+                                        // direction is taken as not determined at all
 
 // The pseudo-inverse of the symmetric positive semi-definite A, scaled to a
 // unit diagonal first so that millimetres and degrees compare; `null` gets
@@ -45,7 +44,7 @@ Eigen::MatrixXd pseudoInverse(const Eigen::MatrixXd& a, std::vector<Eigen::Vecto
 // A re-simulation with one influence moved by its standard uncertainty.
 struct Influence {
   std::string name, quantity, unit;
-  double u = 0.0;              // standard uncertainty, in unit
+  double u = 0.0;               // standard uncertainty, in unit
   Eigen::VectorXd delta_theta;  // the linearised re-solve for q + u
 };
 
@@ -89,7 +88,8 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       }
     b.noalias() += scores * scores.transpose();
   }
-  const double small_sample = static_cast<double>(m) / static_cast<double>(std::max<Eigen::Index>(1, m - n));
+  const double small_sample =
+      static_cast<double>(m) / static_cast<double>(std::max<Eigen::Index>(1, m - n));
   const Eigen::MatrixXd statistical = small_sample * a_inverse * b * a_inverse;
 
   // The influences. Each is a model moved by its u; the fit is solved again
@@ -126,9 +126,10 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   auto resolve = [&](ForwardModel& moved, Influence influence) {
     std::vector<double> solved;
     if (!solveFrom(moved, solved)) {
-      budget.notes.push_back(fmt::format("{}: the fit with it moved by u could not be solved; "
-                                         "left out",
-                                         influence.name));
+      budget.notes.push_back(
+          fmt::format("{}: the fit with it moved by u could not be solved; "
+                      "left out",
+                      influence.name));
       return;
     }
     influence.delta_theta.resize(n);
@@ -144,8 +145,9 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
         "the material is fitted with the dimensions (a calibration): only the statistical part "
         "is given");
   } else if (!propagate) {
-    budget.notes.push_back("the fit could not be solved again on the coarser level: only the "
-                           "statistical part is given");
+    budget.notes.push_back(
+        "the fit could not be solved again on the coarser level: only the "
+        "statistical part is given");
   } else {
     // The scale of the rates that moves the curve by u at the worst path:
     // dI/d(scale) = -x sum a_k mu_k exp(-mu_k x).
@@ -154,7 +156,9 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     const double scale = material.rateScaleFor(u, model.partSizeMm());
     if (scale > 0.0) {
       ForwardModel moved(inputs, material.withScaledRates(scale));
-      resolve(moved, {"material", fmt::format("transmission curve, u = {:.2g}", u), "transmission", u, {}});
+      resolve(
+          moved,
+          {"material", fmt::format("transmission curve, u = {:.2g}", u), "transmission", u, {}});
     }
   }
   // change(inputs, amount) moves the influence by amount * u.
@@ -168,25 +172,32 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   };
   const ScatterModel& scatter = inputs.job.scatter;
   if (scatter.enabled()) {
-    withInputs("scatter weight", fmt::format("w = {:.4g} +- {:.2g}", scatter.weight, scatter.weight_uncertainty),
-               "1", scatter.weight_uncertainty,
-               [&](MeasurementInputs& in, double amount) { in.job.scatter.weight += amount * scatter.weight_uncertainty; });
-    withInputs("scatter width",
-               fmt::format("sigma = {:.4g} +- {:.2g} mm", scatter.sigma_mm, scatter.sigma_uncertainty_mm),
-               "mm", scatter.sigma_uncertainty_mm,
-               [&](MeasurementInputs& in, double amount) { in.job.scatter.sigma_mm += amount * scatter.sigma_uncertainty_mm; });
+    withInputs("scatter weight",
+               fmt::format("w = {:.4g} +- {:.2g}", scatter.weight, scatter.weight_uncertainty), "1",
+               scatter.weight_uncertainty, [&](MeasurementInputs& in, double amount) {
+                 in.job.scatter.weight += amount * scatter.weight_uncertainty;
+               });
+    withInputs(
+        "scatter width",
+        fmt::format("sigma = {:.4g} +- {:.2g} mm", scatter.sigma_mm, scatter.sigma_uncertainty_mm),
+        "mm", scatter.sigma_uncertainty_mm, [&](MeasurementInputs& in, double amount) {
+          in.job.scatter.sigma_mm += amount * scatter.sigma_uncertainty_mm;
+        });
   }
   const Machine& machine = inputs.machine;
   withInputs("source-detector distance",
              fmt::format("D = {:.2f} +- {:.2g} mm", machine.source_detector_distance_mm,
                          machine.source_detector_distance_uncertainty_mm),
-             "mm", machine.source_detector_distance_uncertainty_mm, [&](MeasurementInputs& in, double amount) {
-               in.machine.source_detector_distance_mm += amount * machine.source_detector_distance_uncertainty_mm;
+             "mm", machine.source_detector_distance_uncertainty_mm,
+             [&](MeasurementInputs& in, double amount) {
+               in.machine.source_detector_distance_mm +=
+                   amount * machine.source_detector_distance_uncertainty_mm;
              });
   withInputs("pixel pitch",
              fmt::format("pitch {:.4g} mm, relative u = {:.2g}", machine.pitch_u_mm,
                          machine.pixel_pitch_uncertainty_relative),
-             "relative", machine.pixel_pitch_uncertainty_relative, [&](MeasurementInputs& in, double amount) {
+             "relative", machine.pixel_pitch_uncertainty_relative,
+             [&](MeasurementInputs& in, double amount) {
                in.machine.pitch_u_mm *= 1.0 + amount * machine.pixel_pitch_uncertainty_relative;
                in.machine.pitch_v_mm *= 1.0 + amount * machine.pixel_pitch_uncertainty_relative;
              });
@@ -196,7 +207,9 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     const double u = kDefaultTranslationUncertaintyMm;
     withInputs("translation " + spec.name,
                fmt::format("distance {:.4f} +- {:.2g} mm", spec.distance_mm, u), "mm", u,
-               [&](MeasurementInputs& in, double amount) { in.job.radiographs[k].distance_mm += amount * u; });
+               [&](MeasurementInputs& in, double amount) {
+                 in.job.radiographs[k].distance_mm += amount * u;
+               });
   }
 
   // The total covariance and each free dimension's budget.
@@ -217,8 +230,8 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     const std::string unit = dims[static_cast<size_t>(free[j])].unit;
     for (const Eigen::VectorXd& v : null) du.identifiable &= std::abs(v(c)) < 1e-3;
     const double u_stat = std::sqrt(std::max(0.0, statistical(c, c)));
-    du.components.push_back({"statistical", fmt::format("noise and misfit over {} pixels", m), u_stat,
-                             unit, 1.0, u_stat});
+    du.components.push_back({"statistical", fmt::format("noise and misfit over {} pixels", m),
+                             u_stat, unit, 1.0, u_stat});
     for (const Influence& f : influences) {
       const double d = f.delta_theta(c);
       du.components.push_back({f.name, f.quantity, f.u, f.unit, d / f.u, std::abs(d)});
@@ -234,7 +247,8 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     for (size_t j = i + 1; j < free.size(); ++j) {
       const Eigen::Index ci = column[i], cj = column[j];
       const double vi = total(ci, ci), vj = total(cj, cj), cov = total(ci, cj);
-      const bool either_lost = !budget.dimensions[i].identifiable || !budget.dimensions[j].identifiable;
+      const bool either_lost =
+          !budget.dimensions[i].identifiable || !budget.dimensions[j].identifiable;
       if (!(vi > 0.0 && vj > 0.0) && !either_lost) continue;
       const double rho = vi > 0.0 && vj > 0.0 ? cov / std::sqrt(vi * vj) : 0.0;
       const double sign = either_lost ? 0.0 : (rho < 0.0 ? 1.0 : -1.0);
@@ -256,17 +270,20 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       const double u = std::sqrt(std::max(0.0, var));
       if (!either_lost && !(u < 0.5 * std::sqrt(std::min(vi, vj)))) continue;
       MeasurableCombination combination;
-      combination.terms = {{budget.dimensions[i].name, 1.0}, {budget.dimensions[j].name, coefficient}};
+      combination.terms = {{budget.dimensions[i].name, 1.0},
+                           {budget.dimensions[j].name, coefficient}};
       combination.expression = fmt::format("{} {} {}", budget.dimensions[i].name,
                                            coefficient > 0 ? "+" : "-", budget.dimensions[j].name);
-      combination.value = theta[static_cast<size_t>(free[i])] + coefficient * theta[static_cast<size_t>(free[j])];
+      combination.value =
+          theta[static_cast<size_t>(free[i])] + coefficient * theta[static_cast<size_t>(free[j])];
       combination.expanded = budget.coverage_factor * u;
       budget.combinations.push_back(std::move(combination));
     }
   if (!null.empty())
-    budget.notes.push_back(fmt::format("{} direction(s) of the parameters are not determined by the "
-                                       "radiographs",
-                                       null.size()));
+    budget.notes.push_back(
+        fmt::format("{} direction(s) of the parameters are not determined by the "
+                    "radiographs",
+                    null.size()));
   return budget;
 }
 

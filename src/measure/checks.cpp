@@ -4,7 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
-#include <numbers>
+#include <limits>
 
 namespace xgauge {
 
@@ -23,7 +23,8 @@ double neighbourNoise(const Image& image, const PixelRect& region) {
   std::vector<double> d;
   for (int y = region.y; y < region.bottom(); ++y)
     for (int x = region.x; x + 1 < region.right(); ++x)
-      d.push_back(std::abs(static_cast<double>(image(x + 1, y)) - static_cast<double>(image(x, y))));
+      d.push_back(
+          std::abs(static_cast<double>(image(x + 1, y)) - static_cast<double>(image(x, y))));
   return 1.4826 * median(std::move(d)) / std::sqrt(2.0);
 }
 
@@ -69,13 +70,15 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
     const std::string& full = layout[i].name;  // "dim/width", "t00/position/x"
     const std::string name = full.rfind("dim/", 0) == 0 ? full.substr(4) : full;
     if (theta[k] - lo <= 1e-4 * range)
-      check.warnings.push_back(fmt::format("{} = {:.4f} is at its lower bound {:.4f}: the true "
-                                           "value may lie below it; widen the bounds",
-                                           name, theta[k], lo));
+      check.warnings.push_back(
+          fmt::format("{} = {:.4f} is at its lower bound {:.4f}: the true "
+                      "value may lie below it; widen the bounds",
+                      name, theta[k], lo));
     if (hi - theta[k] <= 1e-4 * range)
-      check.warnings.push_back(fmt::format("{} = {:.4f} is at its upper bound {:.4f}: the true "
-                                           "value may lie above it; widen the bounds",
-                                           name, theta[k], hi));
+      check.warnings.push_back(
+          fmt::format("{} = {:.4f} is at its upper bound {:.4f}: the true "
+                      "value may lie above it; widen the bounds",
+                      name, theta[k], hi));
   }
 
   // Per radiograph: the residual against the noise, and residual regions.
@@ -89,7 +92,8 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
     const RadiographSpec& spec = model.spec(r);
     const Image& measured = model.radiograph(r).levels[static_cast<size_t>(level)];
     const PixelRect& white_full = spec.white_region;
-    const PixelRect white{static_cast<int>(white_full.x / scale), static_cast<int>(white_full.y / scale),
+    const PixelRect white{static_cast<int>(white_full.x / scale),
+                          static_cast<int>(white_full.y / scale),
                           std::max(2, static_cast<int>(white_full.width / scale)),
                           std::max(1, static_cast<int>(white_full.height / scale))};
     const PixelRect roi = segment.roi;
@@ -99,9 +103,8 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
     double sum_abs = 0.0, sum_squares = 0.0;
     for (int y = 0; y < roi.height; ++y)
       for (int x = 0; x < roi.width; ++x) {
-        const double v =
-            unscale * fit.residuals(static_cast<Eigen::Index>(segment.first) +
-                                    static_cast<Eigen::Index>(y) * roi.width + x);
+        const double v = unscale * fit.residuals(static_cast<Eigen::Index>(segment.first) +
+                                                 static_cast<Eigen::Index>(y) * roi.width + x);
         residual(x, y) = static_cast<float>(v);
         sum_abs += std::abs(v), sum_squares += v * v;
       }
@@ -136,7 +139,8 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
     std::vector<double> magnitudes;
     magnitudes.reserve(static_cast<size_t>(roi.area()));
     for (int y = 0; y < roi.height; ++y)
-      for (int x = 0; x < roi.width; ++x) magnitudes.push_back(std::abs(static_cast<double>(mean3(x, y))));
+      for (int x = 0; x < roi.width; ++x)
+        magnitudes.push_back(std::abs(static_cast<double>(mean3(x, y))));
     const double sigma = 1.4826 * median(std::move(magnitudes));
     if (!(sigma > 0.0)) continue;
     const double threshold = kRegionSigmas * sigma;
@@ -157,7 +161,8 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
           stack.pop_back();
           const double v = sign * static_cast<double>(mean3(x, y));
           ++count, sw += v, sx += v * (x + 0.5), sy += v * (y + 0.5), peak = std::max(peak, v);
-          xmin = std::min(xmin, x), xmax = std::max(xmax, x), ymin = std::min(ymin, y), ymax = std::max(ymax, y);
+          xmin = std::min(xmin, x), xmax = std::max(xmax, x), ymin = std::min(ymin, y),
+          ymax = std::max(ymax, y);
           for (int dy = -1; dy <= 1; ++dy)
             for (int dx = -1; dx <= 1; ++dx) {
               const int xx = x + dx, yy = y + dy;
@@ -172,15 +177,18 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
         ResidualRegion region;
         region.radiograph = spec.name;
         region.centre_px = Vec2((roi.x + sx / sw) * scale, (roi.y + sy / sw) * scale);
-        region.box_px = {static_cast<int>((roi.x + xmin) * scale), static_cast<int>((roi.y + ymin) * scale),
-                         static_cast<int>((xmax - xmin + 1) * scale), static_cast<int>((ymax - ymin + 1) * scale)};
+        region.box_px = {static_cast<int>((roi.x + xmin) * scale),
+                         static_cast<int>((roi.y + ymin) * scale),
+                         static_cast<int>((xmax - xmin + 1) * scale),
+                         static_cast<int>((ymax - ymin + 1) * scale)};
         region.area_mm2 = count * scale * scale * machine.pitch_u_mm * machine.pitch_v_mm;
         region.peak = peak;
         region.sigmas = peak / sigma;
         // simulated - measured > 0: the radiograph is darker than the model.
         region.sign = sign > 0 ? "darker" : "brighter";
-        region.part_mm = middleOfPath(mesh, model.pose(theta, r), source,
-                                      machine.detectorPoint(region.centre_px.x(), region.centre_px.y()));
+        region.part_mm =
+            middleOfPath(mesh, model.pose(theta, r), source,
+                         machine.detectorPoint(region.centre_px.x(), region.centre_px.y()));
         check.regions.push_back(region);
       }
   }

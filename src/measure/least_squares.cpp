@@ -51,7 +51,8 @@ std::vector<double> linearSteps(const ForwardModel& model, std::span<const doubl
       case ParameterKind::kAxis: {
         double distance = 10.0;
         for (int r = 0; r < model.radiographCount(); ++r)
-          if (name.starts_with(model.spec(r).name + "/")) distance = std::max(1.0, model.spec(r).distance_mm);
+          if (name.starts_with(model.spec(r).name + "/"))
+            distance = std::max(1.0, model.spec(r).distance_mm);
         steps.push_back(edge_mm / distance * kRadToDeg);
         break;
       }
@@ -99,9 +100,14 @@ class ImageResiduals final : public ceres::CostFunction {
   ImageResiduals(ForwardModel& model, std::vector<double> theta, std::vector<int> indices,
                  std::vector<int> radiographs, std::vector<ResidualSegment> segments, int level,
                  int samples, size_t count, ProgressBar* progress)
-      : model_(model), theta_(std::move(theta)), indices_(std::move(indices)),
-        radiographs_(std::move(radiographs)), segments_(std::move(segments)), level_(level),
-        samples_(samples), progress_(progress) {
+      : model_(model),
+        theta_(std::move(theta)),
+        indices_(std::move(indices)),
+        radiographs_(std::move(radiographs)),
+        segments_(std::move(segments)),
+        level_(level),
+        samples_(samples),
+        progress_(progress) {
     set_num_residuals(static_cast<int>(count));
     mutable_parameter_block_sizes()->push_back(static_cast<int>(indices_.size()));
   }
@@ -163,7 +169,7 @@ Eigen::VectorXd LinearizedFit::weights() const {
   Eigen::VectorXd w = Eigen::VectorXd::Ones(residuals.size());
   for (size_t s = 0; s < segments.size(); ++s) {
     const auto end = static_cast<Eigen::Index>(s + 1 < segments.size() ? segments[s + 1].first
-                                                                      : residuals.size());
+                                                                       : residuals.size());
     const double a = segments[s].threshold;
     for (auto i = static_cast<Eigen::Index>(segments[s].first); i < end; ++i)
       if (std::abs(residuals(i)) > a) w(i) = a / std::abs(residuals(i));
@@ -238,8 +244,7 @@ bool linearize(ForwardModel& model, std::span<const double> theta, const std::ve
 
 StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
                               const std::vector<int>& indices, const std::vector<int>& radiographs,
-                              int level, int samples, int max_iterations, bool robust,
-                              bool quiet) {
+                              int level, int samples, int max_iterations, bool robust, bool quiet) {
   const auto start = std::chrono::steady_clock::now();
   StageReport report;
   report.name = robust ? "joint, robust least squares" : "joint, least squares";
@@ -301,15 +306,16 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
     for (size_t k = 0; k < n; ++k) theta[static_cast<size_t>(indices[k])] = x[k];
     report.loss_after = after;
   }
-  report.termination = fmt::format("{} ({} iterations, {} successful): {}",
-                                   ceres::TerminationTypeToString(summary.termination_type),
-                                   summary.iterations.size() > 0 ? summary.iterations.size() - 1 : 0,
-                                   summary.num_successful_steps, summary.message);
+  report.termination =
+      fmt::format("{} ({} iterations, {} successful): {}",
+                  ceres::TerminationTypeToString(summary.termination_type),
+                  summary.iterations.size() > 0 ? summary.iterations.size() - 1 : 0,
+                  summary.num_successful_steps, summary.message);
   report.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!quiet)
     spdlog::info("{}: {} {:.6g} -> {:.6g} in {} evaluations, {:.2f} s ({})", report.name,
-               robust ? "Huber loss" : "squared residuals", report.loss_before, report.loss_after,
-               report.evaluations, report.seconds, report.termination);
+                 robust ? "Huber loss" : "squared residuals", report.loss_before, report.loss_after,
+                 report.evaluations, report.seconds, report.termination);
   return report;
 }
 

@@ -26,12 +26,12 @@ struct ResidualSegment {
 
 // The residuals and their Jacobian by forward differences, at one point.
 struct LinearizedFit {
-  std::vector<int> indices;          // parameters (columns of jacobian)
+  std::vector<int> indices;  // parameters (columns of jacobian)
   std::vector<ResidualSegment> segments;
   int level = 0, samples = 1;
-  Eigen::VectorXd residuals;         // simulated - measured, scaled as ForwardModel::residuals
-  Eigen::MatrixXd jacobian;          // d residual / d theta[indices[k]]
-  std::vector<double> steps;         // the step of each column's difference
+  Eigen::VectorXd residuals;  // simulated - measured, scaled as ForwardModel::residuals
+  Eigen::MatrixXd jacobian;   // d residual / d theta[indices[k]]
+  std::vector<double> steps;  // the step of each column's difference
   // Huber's psi(r) / r per residual: 1 inside the threshold, threshold / |r| beyond.
   Eigen::VectorXd weights() const;
 };

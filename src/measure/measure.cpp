@@ -138,8 +138,8 @@ void fitPose(ForwardModel& model, std::vector<double>& theta, Runner& runner,
                                      static_cast<size_t>(schedule.multistart), schedule.separation);
     for (size_t k = 0; k < starts.size(); ++k) {
       theta = starts[k];
-      const double loss = runner.run(poseStage(fmt::format("{}: pose from start {}", spec.name, k + 1),
-                                               schedule.local, pose, r, model));
+      const double loss = runner.run(poseStage(
+          fmt::format("{}: pose from start {}", spec.name, k + 1), schedule.local, pose, r, model));
       if (loss < best) best = loss, best_theta = theta;
     }
     theta = best_theta;
@@ -162,10 +162,11 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     const int level = model.levelForWidth(stage.min_width_px);
     const std::string name =
         stage.min_width_px > 0
-            ? fmt::format("joint, {} px", model.radiograph(0).levels[static_cast<size_t>(level)].width())
+            ? fmt::format("joint, {} px",
+                          model.radiograph(0).levels[static_cast<size_t>(level)].width())
             : std::string("joint");
-    StagePlan plan{name, stage.method, all, every_radiograph, level, stage.samples,
-                   stage.evaluations, 0};
+    StagePlan plan{name,          stage.method,      all, every_radiograph, level,
+                   stage.samples, stage.evaluations, 0};
     for (int i : all) {
       const auto index = static_cast<size_t>(i);
       plan.step.push_back(std::min(stage.step_scale * firstStep(model.kind(i)),
@@ -174,17 +175,18 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     if (stage.window_steps > 0.0)
       for (size_t k = 0; k < all.size(); ++k) {
         const auto i = static_cast<size_t>(all[k]);
-        plan.lower.push_back(std::max(model.lower()[i], theta[i] - stage.window_steps * plan.step[k]));
-        plan.upper.push_back(std::min(model.upper()[i], theta[i] + stage.window_steps * plan.step[k]));
+        plan.lower.push_back(
+            std::max(model.lower()[i], theta[i] - stage.window_steps * plan.step[k]));
+        plan.upper.push_back(
+            std::min(model.upper()[i], theta[i] + stage.window_steps * plan.step[k]));
       }
     runner.run(plan);
   }
   const LeastSquaresStage& ls = schedule.least_squares;
   if (ls.enabled)
-    runner.report(solveLeastSquares(model, theta, all, every_radiograph,
-                                    model.levelForWidth(ls.min_width_px), ls.samples,
-                                    ls.max_iterations,
-                                    model.job().loss == LossKind::kMeanAbsolute));
+    runner.report(solveLeastSquares(
+        model, theta, all, every_radiograph, model.levelForWidth(ls.min_width_px), ls.samples,
+        ls.max_iterations, model.job().loss == LossKind::kMeanAbsolute));
 }
 
 // The uncertainty budget and the self-checks, from the residuals and their
@@ -247,9 +249,10 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
   const Schedule& schedule = scheduleFor(job.schedule);
   XG_CHECK(theta.size() == static_cast<size_t>(model.size()), "theta has the wrong size");
   if (const auto why = model.infeasibility(theta))
-    spdlog::warn("the starting parameters cannot be simulated ({}); the searches start from "
-                 "infeasible points",
-                 *why);
+    spdlog::warn(
+        "the starting parameters cannot be simulated ({}); the searches start from "
+        "infeasible points",
+        *why);
   MeasurementResult result;
   Runner runner(model, theta, result, job.seed);
 
@@ -273,9 +276,10 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
   // Final figures at full size.
   result.theta = theta;
   if (const auto why = model.infeasibility(theta))
-    fail("{}: no stage found parameters that can be simulated: {}; check the pose bounds and the "
-         "dimensions' bounds",
-         job.file.string(), *why);
+    fail(
+        "{}: no stage found parameters that can be simulated: {}; check the pose bounds and the "
+        "dimensions' bounds",
+        job.file.string(), *why);
   const auto& dims = model.part().dimensions();
   const auto& free = model.freeDimensionIndices();
   for (size_t i = 0; i < dims.size(); ++i) {

@@ -51,7 +51,8 @@ struct Scene {
   double lab_rate_scale = 0.0;
   // A bright disc added to radiograph a: centre (px), radius (px), height.
   std::optional<std::array<double, 4>> blob;
-  std::string bounds = R"({"rotation_deg": [[-5, 5], [15, 35], [-5, 5]], "centre_mm": [[-30, 30], [-30, 30], [470, 530]]})";
+  std::string bounds =
+      R"({"rotation_deg": [[-5, 5], [15, 35], [-5, 5]], "centre_mm": [[-30, 30], [-30, 30], [470, 530]]})";
   std::string dimension_bounds = "{}";
 };
 
@@ -106,7 +107,8 @@ class Uncertainty : public ::testing::Test {
     std::ofstream(dir_ / "job.json") << R"({
       "part": ")" + s.part_file + R"(",
       "machine": "machine.json", "material": "material.json",
-      "dimensions": {"bounds": )" + s.dimension_bounds + R"(},
+      "dimensions": {"bounds": )" + s.dimension_bounds +
+                                            R"(},
       "radiographs": [
         {"name": "a", "image": "a.tif", "white_region": [2, 2, 20, 20], "pattern": "free"},
         {"name": "b", "image": "b.tif", "white_region": [2, 2, 20, 20], "pattern": "translated",
@@ -205,8 +207,8 @@ TEST_F(Uncertainty, AnInfluenceMovesTheResultAsItsReSolveSays) {
   Scene dense = clean;
   dense.lab_rate_scale = 0.01;
   const MeasurementResult darker = measureScene(dense);
-  const double scale_u = clean.material.rateScaleFor(
-      clean.material.transmissionUncertainty(), model_->partSizeMm());
+  const double scale_u =
+      clean.material.rateScaleFor(clean.material.transmissionUncertainty(), model_->partSizeMm());
   ASSERT_GT(scale_u, 0.0);
   for (size_t k = 0; k < nominal.dimensions.size(); ++k) {
     const std::string& name = nominal.dimensions[k].name;
@@ -269,8 +271,8 @@ TEST_F(Uncertainty, AResidualRegionIsReportedWhereTheImageDiffersAndNowhereElse)
   Scene clean;
   clean.noise = 0.005;
   const MeasurementResult none = measureScene(clean);
-  EXPECT_TRUE(none.check.regions.empty())
-      << none.check.regions.size() << " regions, first at " << none.check.regions[0].centre_px.transpose();
+  EXPECT_TRUE(none.check.regions.empty()) << none.check.regions.size() << " regions, first at "
+                                          << none.check.regions[0].centre_px.transpose();
   Scene spot = clean;
   spot.blob = std::array<double, 4>{70.0, 85.0, 3.0, 0.04};  // inside the shadow of a
   const MeasurementResult found = measureScene(spot);
@@ -281,7 +283,8 @@ TEST_F(Uncertainty, AResidualRegionIsReportedWhereTheImageDiffersAndNowhereElse)
   EXPECT_EQ(region.sign, "brighter");
   EXPECT_TRUE(region.part_mm.has_value());
   bool warned = false;
-  for (const auto& w : found.check.warnings) warned |= w.find("residual region") != std::string::npos;
+  for (const auto& w : found.check.warnings)
+    warned |= w.find("residual region") != std::string::npos;
   EXPECT_TRUE(warned);
 }
 

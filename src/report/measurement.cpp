@@ -7,9 +7,8 @@
 #include "xgauge/loss/loss.h"
 #include "xgauge/measure/measure.h"
 #include "xgauge/measure/model.h"
-#include "xgauge/xray/machine.h"
 #include "xgauge/version.h"
-
+#include "xgauge/xray/machine.h"
 
 namespace xgauge {
 
@@ -17,15 +16,19 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
   const MeasurementJob& job = model.job();
   nlohmann::json dims = nlohmann::json::array();
   for (const auto& d : result.dimensions) {
-    nlohmann::json item = {{"name", d.name}, {"value_mm", d.value}, {"free", d.free}, {"unit", d.unit}};
+    nlohmann::json item = {
+        {"name", d.name}, {"value_mm", d.value}, {"free", d.free}, {"unit", d.unit}};
     if (d.free) {
-      item["expanded_uncertainty"] =
-          d.expanded_uncertainty ? nlohmann::json(*d.expanded_uncertainty) : nlohmann::json(nullptr);
+      item["expanded_uncertainty"] = d.expanded_uncertainty
+                                         ? nlohmann::json(*d.expanded_uncertainty)
+                                         : nlohmann::json(nullptr);
       item["identifiable"] = d.expanded_uncertainty.has_value();
     }
     if (d.tolerance)
-      item["tolerance"] = {{"nominal", d.tolerance->nominal}, {"lower", d.tolerance->lower},
-                           {"upper", d.tolerance->upper}, {"source", d.tolerance->source}};
+      item["tolerance"] = {{"nominal", d.tolerance->nominal},
+                           {"lower", d.tolerance->lower},
+                           {"upper", d.tolerance->upper},
+                           {"source", d.tolerance->source}};
     if (d.decision) {
       item["verdict"] = std::string(verdictName(d.decision->verdict));
       item["cannot_decide"] = d.decision->cannot_decide;
@@ -36,28 +39,37 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
   for (const DimensionUncertainty& u : result.uncertainty.dimensions) {
     nlohmann::json components = nlohmann::json::array();
     for (const UncertaintyComponent& c : u.components)
-      components.push_back({{"name", c.name}, {"quantity", c.quantity},
-                            {"standard_uncertainty", c.standard_uncertainty}, {"unit", c.unit},
-                            {"sensitivity", c.sensitivity}, {"contribution", c.contribution}});
-    budget.push_back({{"name", u.name}, {"identifiable", u.identifiable},
+      components.push_back({{"name", c.name},
+                            {"quantity", c.quantity},
+                            {"standard_uncertainty", c.standard_uncertainty},
+                            {"unit", c.unit},
+                            {"sensitivity", c.sensitivity},
+                            {"contribution", c.contribution}});
+    budget.push_back({{"name", u.name},
+                      {"identifiable", u.identifiable},
                       {"combined_standard_uncertainty", u.combined},
-                      {"expanded_uncertainty", u.identifiable ? nlohmann::json(u.expanded) : nlohmann::json(nullptr)},
+                      {"expanded_uncertainty",
+                       u.identifiable ? nlohmann::json(u.expanded) : nlohmann::json(nullptr)},
                       {"components", components}});
   }
   nlohmann::json combinations = nlohmann::json::array();
   for (const MeasurableCombination& c : result.uncertainty.combinations) {
     nlohmann::json terms = nlohmann::json::array();
-    for (const auto& [name, coefficient] : c.terms) terms.push_back({{"dimension", name}, {"coefficient", coefficient}});
-    combinations.push_back({{"expression", c.expression}, {"terms", terms}, {"value", c.value},
+    for (const auto& [name, coefficient] : c.terms)
+      terms.push_back({{"dimension", name}, {"coefficient", coefficient}});
+    combinations.push_back({{"expression", c.expression},
+                            {"terms", terms},
+                            {"value", c.value},
                             {"expanded_uncertainty", c.expanded}});
   }
-  const nlohmann::json uncertainty = {{"coverage_factor", result.uncertainty.coverage_factor},
-                                      {"method", "GUM (JCGM 100) linear propagation; docs/method.md"},
-                                      {"level", result.uncertainty.level},
-                                      {"pixels", result.uncertainty.pixels},
-                                      {"dimensions", budget},
-                                      {"combinations", combinations},
-                                      {"notes", result.uncertainty.notes}};
+  const nlohmann::json uncertainty = {
+      {"coverage_factor", result.uncertainty.coverage_factor},
+      {"method", "GUM (JCGM 100) linear propagation; docs/method.md"},
+      {"level", result.uncertainty.level},
+      {"pixels", result.uncertainty.pixels},
+      {"dimensions", budget},
+      {"combinations", combinations},
+      {"notes", result.uncertainty.notes}};
   nlohmann::json regions = nlohmann::json::array();
   for (const ResidualRegion& r : result.check.regions) {
     nlohmann::json item = {{"radiograph", r.radiograph},
@@ -73,8 +85,10 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
   }
   nlohmann::json fits = nlohmann::json::array();
   for (const RadiographCheck& c : result.check.radiographs)
-    fits.push_back({{"name", c.name}, {"noise_sigma", c.noise_sigma},
-                    {"mean_abs_residual", c.mean_abs_residual}, {"rms_residual", c.rms_residual},
+    fits.push_back({{"name", c.name},
+                    {"noise_sigma", c.noise_sigma},
+                    {"mean_abs_residual", c.mean_abs_residual},
+                    {"rms_residual", c.rms_residual},
                     {"misfit_ratio", c.misfit_ratio}});
   bool toleranced = false;
   for (const auto& d : result.dimensions) toleranced |= d.decision.has_value();
@@ -94,29 +108,35 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
   }
   nlohmann::json stages = nlohmann::json::array();
   for (const auto& s : result.stages)
-    stages.push_back({{"name", s.name}, {"method", s.method}, {"level", s.level}, {"samples", s.samples},
-                      {"evaluations", s.evaluations}, {"seconds", s.seconds},
-                      {"loss_before", s.loss_before}, {"loss_after", s.loss_after},
+    stages.push_back({{"name", s.name},
+                      {"method", s.method},
+                      {"level", s.level},
+                      {"samples", s.samples},
+                      {"evaluations", s.evaluations},
+                      {"seconds", s.seconds},
+                      {"loss_before", s.loss_before},
+                      {"loss_after", s.loss_after},
                       {"termination", s.termination}});
   // The digests of the bytes the loader parsed (measure/inputs.h), so that
   // no input is read twice.
   nlohmann::json inputs = model.inputs().sha256;
   return {{"software", "xgauge " XGAUGE_VERSION_STRING},
-                              {"job", job.file.string()},
-                              {"schedule", scheduleName(job.schedule)},
-                              {"loss", lossKindName(job.loss)},
-                              {"dimensions", dims},
-                              {"decision_rule", toleranced ? nlohmann::json(std::string(kDecisionRule)) : nlohmann::json(nullptr)},
-                              {"uncertainty", uncertainty},
-                              {"warnings", result.check.warnings},
-                              {"residual_regions", regions},
-                              {"fit_checks", fits},
-                              {"radiographs", radiographs},
-                              {"total_loss", result.total_loss},
-                              {"evaluations", result.evaluations},
-                              {"seconds", result.seconds},
-                              {"stages", stages},
-                              {"inputs_sha256", inputs}};
+          {"job", job.file.string()},
+          {"schedule", scheduleName(job.schedule)},
+          {"loss", lossKindName(job.loss)},
+          {"dimensions", dims},
+          {"decision_rule",
+           toleranced ? nlohmann::json(std::string(kDecisionRule)) : nlohmann::json(nullptr)},
+          {"uncertainty", uncertainty},
+          {"warnings", result.check.warnings},
+          {"residual_regions", regions},
+          {"fit_checks", fits},
+          {"radiographs", radiographs},
+          {"total_loss", result.total_loss},
+          {"evaluations", result.evaluations},
+          {"seconds", result.seconds},
+          {"stages", stages},
+          {"inputs_sha256", inputs}};
 }
 
 void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,

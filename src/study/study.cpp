@@ -3,16 +3,16 @@
 #include "xgauge/report/measurement.h"
 
 #include "xgauge/core/atomic_file.h"
-#include "xgauge/core/output.h"
 #include "xgauge/core/config.h"
 #include "xgauge/core/digest.h"
-#include "xgauge/version.h"
+#include "xgauge/core/output.h"
 #include "xgauge/core/progress.h"
 #include "xgauge/material/exponential_fit.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/measure/measure.h"
 #include "xgauge/measure/model.h"
 #include "xgauge/measure/truth.h"
+#include "xgauge/version.h"
 
 #include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
@@ -137,9 +137,10 @@ std::vector<const TruthShot*> translatedSeries(const DatasetTruth& truth) {
     if (s.pattern != "translated") continue;
     if (series.empty()) series.push_back(&truth.shot(s.reference));
     if (s.reference != series.front()->name)
-      fail("{}: shot {} is translated from {}, but the study's series starts at {}; a study takes "
-           "one translated series",
-           (truth.folder / "truth.json").string(), s.name, s.reference, series.front()->name);
+      fail(
+          "{}: shot {} is translated from {}, but the study's series starts at {}; a study takes "
+          "one translated series",
+          (truth.folder / "truth.json").string(), s.name, s.reference, series.front()->name);
     series.push_back(&s);
   }
   return series;
@@ -223,10 +224,10 @@ StudyInputs prepareStudyInputs(const DatasetTruth& truth, const nlohmann::json& 
     ExponentialFitReport report;
     const ExponentialSum fitted =
         fitExponentialSum(truth.path_mm, truth.transmission, 3, {}, &report);
-    inputs.material =
-        ExponentialSum(fitted.terms(), fmt::format("3 exponentials fitted to {} (max residual {:.2e})",
-                                                   (truth.folder / "truth.json").string(),
-                                                   report.max_abs_residual));
+    inputs.material = ExponentialSum(
+        fitted.terms(),
+        fmt::format("3 exponentials fitted to {} (max residual {:.2e})",
+                    (truth.folder / "truth.json").string(), report.max_abs_residual));
   } else {
     inputs.material = ExponentialSum::load(settings_file.parent_path() / material);
   }
@@ -253,7 +254,9 @@ std::shared_ptr<const PreparedRadiograph> PreparedShots::get(const RadiographSpe
   if (it == prepared_.end()) {
     RadiographFrames frames;
     if (!spec.dark.empty()) {
-      if (!dark_) dark_ = readInputTiff(spec.dark, machine_, sha256_), flat_ = readInputTiff(spec.flat, machine_, sha256_);
+      if (!dark_)
+        dark_ = readInputTiff(spec.dark, machine_, sha256_),
+        flat_ = readInputTiff(spec.flat, machine_, sha256_);
       frames = {&*dark_, &*flat_};
     }
     it = prepared_
@@ -276,8 +279,8 @@ std::string StudySummary::table() const {
                        : fmt::format(" {:>9.4f} {:>8.1f}% {:>7.2f}", c.mean_u, 100.0 * c.coverage,
                                      c.mean_normalised);
   };
-  std::string out = fmt::format("{:<18} {:>14} {:>14} {:>9} {:>9} {:>7}\n", "dimension", "mean |err| mm",
-                                "max |err| mm", "mean U", "coverage", "|e|/U");
+  std::string out = fmt::format("{:<18} {:>14} {:>14} {:>9} {:>9} {:>7}\n", "dimension",
+                                "mean |err| mm", "max |err| mm", "mean U", "coverage", "|e|/U");
   for (const auto& d : dimensions)
     out += fmt::format("{:<18} {:>14.4f} {:>14.4f}", d, mean_abs_mm.at(d), max_abs_mm.at(d)) +
            figures(coverage.at(d)) + "\n";
@@ -317,7 +320,8 @@ StudySummary runStudy(const StudyOptions& options) {
   for (const auto& c : runs) {
     jobs.push_back(studyJob(settings, truth, c.shots, c.id, machine_file, material_file));
     const ConfigNode root = ConfigNode::fromJson(jobs.back(), options.settings.string());
-    const MeasurementJob job = MeasurementJob::fromConfig(root, options.settings, *inputs.part, true);
+    const MeasurementJob job =
+        MeasurementJob::fromConfig(root, options.settings, *inputs.part, true);
     root.finish();
     free_dimensions = job.free_dimensions;
   }
@@ -335,8 +339,7 @@ StudySummary runStudy(const StudyOptions& options) {
     const fs::path folder = options.output / "runs" / runs[i].id;
     const fs::path result_file = folder / "result.json";
     const fs::path fingerprint_file = folder / "fingerprint.sha256";
-    const std::string fingerprint =
-        runFingerprint(jobs[i], truth, inputs, options.images, digests);
+    const std::string fingerprint = runFingerprint(jobs[i], truth, inputs, options.images, digests);
     std::optional<StudyRun> run;
     if (fs::exists(result_file)) {
       if (readText(fingerprint_file) != fingerprint) {
@@ -380,7 +383,8 @@ StudySummary runStudy(const StudyOptions& options) {
   std::string csv = "run,seconds";
   for (const auto& d : summary.dimensions) csv += "," + d + "_error_mm";
   csv += "\n";
-  for (const auto& d : summary.dimensions) summary.mean_abs_mm[d] = 0.0, summary.max_abs_mm[d] = 0.0;
+  for (const auto& d : summary.dimensions)
+    summary.mean_abs_mm[d] = 0.0, summary.max_abs_mm[d] = 0.0;
   std::vector<double> seconds;
   for (const auto& run : summary.runs) {
     csv += fmt::format("{},{:.3f}", run.id, run.seconds);
@@ -425,21 +429,28 @@ StudySummary runStudy(const StudyOptions& options) {
   writeFileAtomically(options.output / "study.csv", csv);
   nlohmann::json per_dim = nlohmann::json::object();
   auto coverageJson = [](const CoverageFigures& c) {
-    return nlohmann::json{{"runs_with_u", c.runs}, {"mean_u_mm", c.mean_u}, {"coverage", c.coverage},
-                          {"mean_normalised_error", c.mean_normalised}, {"mean_abs_mm", c.mean_abs}};
+    return nlohmann::json{{"runs_with_u", c.runs},
+                          {"mean_u_mm", c.mean_u},
+                          {"coverage", c.coverage},
+                          {"mean_normalised_error", c.mean_normalised},
+                          {"mean_abs_mm", c.mean_abs}};
   };
   for (const auto& d : summary.dimensions) {
     per_dim[d] = {{"mean_abs_mm", summary.mean_abs_mm[d]}, {"max_abs_mm", summary.max_abs_mm[d]}};
     per_dim[d].update(coverageJson(summary.coverage[d]));
   }
   nlohmann::json combos = nlohmann::json::object();
-  for (const auto& [expression, c] : summary.combination_coverage) combos[expression] = coverageJson(c);
+  for (const auto& [expression, c] : summary.combination_coverage)
+    combos[expression] = coverageJson(c);
   nlohmann::json all_runs = nlohmann::json::array();
   for (const auto& run : summary.runs) {
     nlohmann::json combination_errors = nlohmann::json::object();
     for (const auto& [expression, eu] : run.combinations)
-      combination_errors[expression] = {{"error_mm", eu.first}, {"expanded_uncertainty", eu.second}};
-    all_runs.push_back({{"id", run.id}, {"seconds", run.seconds}, {"error_mm", run.error_mm},
+      combination_errors[expression] = {{"error_mm", eu.first},
+                                        {"expanded_uncertainty", eu.second}};
+    all_runs.push_back({{"id", run.id},
+                        {"seconds", run.seconds},
+                        {"error_mm", run.error_mm},
                         {"expanded_uncertainty_mm", run.expanded_mm},
                         {"combinations", combination_errors}});
   }
@@ -453,7 +464,8 @@ StudySummary runStudy(const StudyOptions& options) {
                                       {"combinations_coverage", combos},
                                       {"median_seconds", summary.median_seconds},
                                       {"runs", all_runs}})
-                              .dump(2) + "\n");
+                              .dump(2) +
+                          "\n");
   return summary;
 }
 

@@ -28,20 +28,20 @@ inline constexpr int kRegionMinPixels = 6;
 
 struct ResidualRegion {
   std::string radiograph;
-  Vec2 centre_px;           // full-size detector pixels (continuous), residual-weighted
+  Vec2 centre_px;               // full-size detector pixels (continuous), residual-weighted
   std::array<int, 4> box_px{};  // [x, y, width, height], full-size pixels
-  double area_mm2 = 0.0;    // on the detector
-  double peak = 0.0;        // largest |simulated - measured| of the 3 x 3 mean (normalized units)
-  double sigmas = 0.0;      // peak in robust sigmas of the 3 x 3 mean
-  std::string sign;         // "brighter" (less material than modelled) or "darker"
+  double area_mm2 = 0.0;        // on the detector
+  double peak = 0.0;    // largest |simulated - measured| of the 3 x 3 mean (normalized units)
+  double sigmas = 0.0;  // peak in robust sigmas of the 3 x 3 mean
+  std::string sign;     // "brighter" (less material than modelled) or "darker"
   std::optional<Vec3> part_mm;  // middle of the centre ray's path through the fitted part
 };
 
 struct RadiographCheck {
   std::string name;
-  double noise_sigma = 0.0;         // of one pixel of the fit's level, open beam
-  double mean_abs_residual = 0.0;   // per pixel of the roi at the fit's level
-  double rms_residual = 0.0;        // per pixel of the roi at the fit's level
+  double noise_sigma = 0.0;        // of one pixel of the fit's level, open beam
+  double mean_abs_residual = 0.0;  // per pixel of the roi at the fit's level
+  double rms_residual = 0.0;       // per pixel of the roi at the fit's level
   // rms residual / noise sigma: 1 for a fit that leaves only noise; a wrong
   // dimension leaves a band of large residuals along an edge, which the rms
   // weighs as it should and a mean |residual| over the whole roi dilutes.

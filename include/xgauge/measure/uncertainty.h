@@ -57,8 +57,8 @@ struct MeasurableCombination {
 
 struct UncertaintyBudget {
   double coverage_factor = 2.0;
-  int level = 0;           // pyramid level of the linearisation
-  double pixels = 0.0;     // residuals used
+  int level = 0;                                 // pyramid level of the linearisation
+  double pixels = 0.0;                           // residuals used
   std::vector<DimensionUncertainty> dimensions;  // the free dimensions, model order
   std::vector<MeasurableCombination> combinations;
   std::vector<std::string> notes;  // why a component is missing, and the like

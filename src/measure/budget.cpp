@@ -159,7 +159,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   } else {
     // The scale of the rates that moves the curve by u at the worst path:
     // dI/d(scale) = -x sum a_k mu_k exp(-mu_k x).
-    const ExponentialSum material = model.material();
+    const ExponentialSum& material = model.material();
     const double u = material.transmissionUncertainty();
     const double scale = material.rateScaleFor(u, model.partSizeMm());
     if (scale > 0.0) {

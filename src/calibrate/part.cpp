@@ -154,7 +154,9 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
   // 2. Poses with that material.
   ForwardModel model(*job.inputs, initial);
   std::vector<double> theta = model.start();
-  out.measurement = measure(model, theta);
+  MeasureOptions provisional;
+  provisional.assess = false;
+  out.measurement = measure(model, theta, provisional);
   theta = out.measurement.theta;
 
   // 3-4. The material from the registered pixels, then everything together
@@ -178,6 +180,7 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
     MeasureOptions options;
     options.search_poses = false;
     options.joint_search = false;
+    options.assess = false;
     out.measurement = measure(model, theta, options);
     theta = out.measurement.theta;
     r.material = model.materialOf(theta);

@@ -290,7 +290,7 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
     d.unit = dims[i].unit;
     result.dimensions.push_back(std::move(d));
   }
-  assess(model, theta, result);
+  if (options.assess) assess(model, theta, result);
   decideConformity(model, result);
   for (int r = 0; r < model.radiographCount(); ++r) {
     const int only[] = {r};

@@ -76,6 +76,10 @@ struct MeasureOptions {
   // false: skip the derivative-free joint stages too; only the final
   // (reweighted) least-squares stage runs.
   bool joint_search = true;
+  // false: skip the uncertainty budget and the self-checks (a calibration's
+  // intermediate fits, with a provisional material: their budget would cost
+  // re-solves and warn about a misfit the next round removes).
+  bool assess = true;
 };
 // The same on a model built by the caller, from `theta` (model.start() for a
 // fresh measurement).

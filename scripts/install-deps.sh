@@ -21,6 +21,8 @@ packages=(
   python3-jsonschema   # tests/validate_schemas.py: JSON files against docs/schemas
   clang-format clang-tidy   # scripts/tidy.sh
   clang libclang-rt-14-dev llvm   # scripts/fuzz.sh: libFuzzer, sanitizers, symbolizer
+  chromium fonts-dejavu-core   # tests/report_test.py: the HTML reports in headless Chromium
+  curl ca-certificates openssl # scripts/fetch-web-deps.sh (uPlot, when not vendored already)
 )
 
 sudo_cmd=()
@@ -32,9 +34,12 @@ for p in "${packages[@]}"; do
 done
 if [ ${#missing[@]} -eq 0 ]; then
   echo "install-deps: all ${#packages[@]} packages already installed"
-  exit 0
+else
+  echo "install-deps: installing ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  "${sudo_cmd[@]}" apt-get update -qq
+  "${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
-echo "install-deps: installing ${missing[*]}"
-export DEBIAN_FRONTEND=noninteractive
-"${sudo_cmd[@]}" apt-get update -qq
-"${sudo_cmd[@]}" apt-get install -y -qq --no-install-recommends "${missing[@]}"
+
+# The chart library the HTML reports inline (npm registry, pinned, hash-checked).
+bash "$(dirname "$0")/fetch-web-deps.sh"

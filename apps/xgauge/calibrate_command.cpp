@@ -17,10 +17,12 @@ namespace {
 void addArguments(CLI::App* cmd, CalibrateArguments& args) {
   cmd->add_option("job", args.job, "Calibration job (JSON)")->required();
   cmd->add_option("-o,--output", args.output,
-                  "Output folder: material.json, calibration.json, calibration.png")
+                  "Output folder: material.json, calibration.json, report.html")
       ->required();
   cmd->add_option("--truth", args.truth,
                   "A virtual lab's truth.json: also report the deviation from its true curve");
+  cmd->add_flag("--report,!--no-report", args.report,
+                "Write report.html, the calibration report (default: on)");
 }
 
 TrueCurve trueCurve(const std::string& truth_file) {
@@ -29,13 +31,13 @@ TrueCurve trueCurve(const std::string& truth_file) {
   return {truth.path_mm, truth.transmission};
 }
 
-void printMaterial(const ExponentialSum& material, const std::string& output) {
+void printMaterial(const ExponentialSum& material, const CalibrateArguments& args) {
   std::string text = "I(x) =";
   for (size_t k = 0; k < material.terms().size(); ++k)
     text += fmt::format("{} {:.5f} exp(-{:.5f} x)", k ? " +" : "", material.terms()[k].weight,
                         material.terms()[k].mu_per_mm);
-  std::printf("%s\nwrote %s/material.json, calibration.json, calibration.png\n", text.c_str(),
-              output.c_str());
+  std::printf("%s\nwrote %s/material.json, calibration.json%s\n", text.c_str(),
+              args.output.c_str(), args.report ? ", report.html" : "");
 }
 
 }  // namespace
@@ -72,14 +74,14 @@ void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
                   f.report.max_abs_residual, f.report.max_relative_residual,
                   &f == &result.fit.best() ? "  <- chosen" : "");
     std::printf("eq. 3.7: x0 = %.4f mm, x_max = %.4f mm\n", result.x0_mm, result.x_max_mm);
-    writeWedgeCalibration(job, result, truth, wedge.output);
-    printMaterial(result.material, wedge.output);
+    writeWedgeCalibration(job, result, truth, wedge.output, wedge.report);
+    printMaterial(result.material, wedge);
   } else {
     const PartCalibrationJob job = PartCalibrationJob::load(part.job);
     const TrueCurve truth = trueCurve(part.truth);
     const PartCalibration result = calibrateFromPart(job);
-    writePartCalibration(job, result, truth, part.output);
-    printMaterial(result.material, part.output);
+    writePartCalibration(job, result, truth, part.output, part.report);
+    printMaterial(result.material, part);
   }
   outputs.commit();
 }

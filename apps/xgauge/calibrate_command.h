@@ -12,6 +12,7 @@ struct CalibrateArguments {
   std::string job;
   std::string output;
   std::string truth;  // optional truth.json: compare with the lab's true curve
+  bool report = true;  // write report.html
 };
 
 void addCalibrateCommand(CLI::App& app, CalibrateArguments& wedge, CalibrateArguments& part);

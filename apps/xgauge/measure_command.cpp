@@ -27,6 +27,8 @@ void addMeasureCommand(CLI::App& app, MeasureArguments& args) {
                   "Output folder: result.json, simulated and difference images, log")
       ->required();
   cmd->add_option("--truth", args.truth, "A virtual lab's truth.json: also print the errors");
+  cmd->add_flag("--report,!--no-report", args.report,
+                "Write report.html, the inspection report (default: on)");
 }
 
 int runMeasure(const MeasureArguments& args) {
@@ -80,7 +82,10 @@ int runMeasure(const MeasureArguments& args) {
   spdlog::info("{} evaluations in {:.1f} s; final loss {:.6g}", result.evaluations, result.seconds,
                result.total_loss);
   OutputTransaction outputs;
-  writeMeasurementOutputs(model, result, args.output);
+  nlohmann::json true_values = nullptr;
+  if (truth)
+    for (const auto& [name, value] : truth->dimensions) true_values[name] = value;
+  writeMeasurementOutputs(model, result, args.output, args.report, true_values);
   spdlog::default_logger()->sinks().pop_back();
   writeFileAtomically(std::filesystem::path(args.output) / "measure.log", log.str() + table);
   outputs.commit();

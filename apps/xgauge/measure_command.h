@@ -12,6 +12,7 @@ struct MeasureArguments {
   std::string job;
   std::string output;
   std::string truth;  // optional truth.json: print errors against it
+  bool report = true;  // write report.html
 };
 
 struct MaterialArguments {

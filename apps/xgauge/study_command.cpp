@@ -17,7 +17,10 @@ void addStudyCommand(CLI::App& app, StudyArguments& args) {
   cmd->add_option("-c,--combinations", args.combinations, "pairs or pairs+rotated")
       ->check(CLI::IsMember({"pairs", "pairs+rotated"}));
   cmd->add_option("--limit", args.limit, "Only the first N runs (0 = all)")->check(CLI::NonNegativeNumber);
-  cmd->add_flag("--images", args.images, "Also write each run's simulated and difference images");
+  cmd->add_flag("--images", args.images,
+                "Also write each run's simulated and difference images and its report.html");
+  cmd->add_flag("--report,!--no-report", args.report,
+                "Write report.html, the study report (default: on)");
   cmd->add_option("-o,--output", args.output, "Output folder (resumes a study already there)")->required();
 }
 
@@ -30,9 +33,11 @@ void runStudyCommand(const StudyArguments& args) {
   options.limit = args.limit;
   options.output = args.output;
   options.images = args.images;
+  options.report = args.report;
   const StudySummary summary = runStudy(options);
   std::fputs(summary.table().c_str(), stdout);
-  spdlog::info("wrote {}/study.csv and study.json", args.output);
+  spdlog::info("wrote {}/study.csv, study.json{}", args.output,
+               args.report ? " and report.html" : "");
 }
 
 }  // namespace xgauge::cli

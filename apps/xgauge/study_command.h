@@ -14,6 +14,7 @@ struct StudyArguments {
   int limit = 0;
   std::string output;
   bool images = false;
+  bool report = true;
 };
 
 void addStudyCommand(CLI::App& app, StudyArguments& args);

@@ -77,6 +77,7 @@ WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
 
   // 2. The ramp.
   out.ramp = detectRamp(image, job.ramp, name);
+  out.normalized = image;
   const RampDetection& ramp = out.ramp;
   spdlog::debug("{}: ramp in columns {}..{}, thin end at row {:.2f}, thick end at row {:.2f}{}",
                 name, ramp.column_begin, ramp.column_end - 1, ramp.thin_row, ramp.thick_row,

@@ -4,6 +4,8 @@
 #include "xgauge/core/error.h"
 #include "xgauge/image/stats.h"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -17,12 +19,13 @@
 #include <stb_image_write.h>
 
 namespace xgauge {
-namespace {
 
-// Encodes to memory and writes with writeFileAtomically: stbi_write_png()
-// ignores fwrite/fclose failures, so a full disk would go unnoticed.
-void writePng(const std::filesystem::path& path, int width, int height, int channels,
-              const std::vector<uint8_t>& pixels) {
+std::string encodePng(int width, int height, int channels, const std::vector<uint8_t>& pixels) {
+  if (width <= 0 || height <= 0 || (channels != 1 && channels != 3 && channels != 4) ||
+      pixels.size() != static_cast<size_t>(width) * static_cast<size_t>(height) *
+                           static_cast<size_t>(channels))
+    throw Error(fmt::format("cannot encode a {} x {} PNG of {} channels from {} bytes", width,
+                            height, channels, pixels.size()));
   std::string png;
   const auto append = [](void* context, void* data, int size) {
     static_cast<std::string*>(context)->append(static_cast<const char*>(data),
@@ -30,7 +33,22 @@ void writePng(const std::filesystem::path& path, int width, int height, int chan
   };
   if (stbi_write_png_to_func(append, &png, width, height, channels, pixels.data(),
                              width * channels) == 0)
+    throw Error("cannot encode the PNG image");
+  return png;
+}
+
+namespace {
+
+// Encodes to memory and writes with writeFileAtomically: stbi_write_png()
+// ignores fwrite/fclose failures, so a full disk would go unnoticed.
+void writePng(const std::filesystem::path& path, int width, int height, int channels,
+              const std::vector<uint8_t>& pixels) {
+  std::string png;
+  try {
+    png = encodePng(width, height, channels, pixels);
+  } catch (const Error&) {
     throw Error("cannot encode the PNG image", SourceLocation::inFile(path.string()));
+  }
   writeFileAtomically(path, png);
 }
 

@@ -296,6 +296,7 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
   if (progress) progress->finish();
 
   report.evaluations += cost.evaluations();
+  for (const ceres::IterationSummary& it : summary.iterations) report.trace.push_back(2.0 * it.cost);
   report.loss_after = report.loss_before;
   const bool usable = summary.termination_type == ceres::CONVERGENCE ||
                       summary.termination_type == ceres::NO_CONVERGENCE ||

@@ -305,6 +305,10 @@ Image ForwardModel::pathLengths(std::span<const double> theta, int radiograph, i
   return out;
 }
 
+std::vector<Segment2> ForwardModel::outline(std::span<const double> theta, int radiograph) {
+  return projectedContour(machine(), posedMesh(theta, radiograph));
+}
+
 ScatterEstimate ForwardModel::scatter(std::span<const double> theta, int radiograph, int level) {
   XG_CHECK(job().scatter.enabled(), "the job models no scatter");
   useMaterialOf(theta);

@@ -35,6 +35,7 @@ double Runner::run(const StagePlan& plan) {
   ProgressBar progress(plan.name, plan.method == Method::kUniformSampling
                                       ? plan.sampling_points + 1
                                       : plan.evaluations);
+  StageReport report;
   objective.f = [&](std::span<const double> x) {
     for (size_t k = 0; k < plan.indices.size(); ++k)
       trial[static_cast<size_t>(plan.indices[k])] = x[k];
@@ -43,9 +44,9 @@ double Runner::run(const StagePlan& plan) {
     const double value = model_.loss(trial, plan.level, plan.samples, plan.radiographs)
                              .value_or(std::numeric_limits<double>::infinity());
     if (record_) record_->push_back({value, trial});
+    report.trace.push_back(value);
     return value;
   };
-  StageReport report;
   report.name = plan.name;
   report.method = std::string(methodName(plan.method));
   report.level = plan.level;

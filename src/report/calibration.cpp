@@ -3,7 +3,7 @@
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/core/output.h"
 #include "xgauge/report/measurement.h"
-#include "xgauge/report/plot.h"
+#include "xgauge/report/html.h"
 #include "xgauge/version.h"
 
 #include <spdlog/spdlog.h>
@@ -13,88 +13,62 @@
 namespace xgauge {
 
 void writeCalibrationOutputs(const std::filesystem::path& folder, const ExponentialSum& material,
-                             nlohmann::json figures, const CalibrationPlot& plot,
-                             const TrueCurve& true_curve) {
+                             nlohmann::json figures, const CalibrationData& data,
+                             const TrueCurve& true_curve, const nlohmann::json& pictures,
+                             bool html_report) {
   createOutputFolder(folder);
   auto fitted = [&](double x) { return material.transmission(x); };
 
   // Residuals of the final material against the data.
-  std::vector<double> residual;
   double sum_squares = 0.0, worst = 0.0;
-  for (size_t i = 0; i < plot.path_mm.size(); ++i) {
-    residual.push_back(plot.transmission[i] - fitted(plot.path_mm[i]));
-    sum_squares += residual.back() * residual.back();
-    worst = std::max(worst, std::abs(residual.back()));
+  for (size_t i = 0; i < data.path_mm.size(); ++i) {
+    const double residual = data.transmission[i] - fitted(data.path_mm[i]);
+    sum_squares += residual * residual;
+    worst = std::max(worst, std::abs(residual));
   }
-  const double rms = plot.path_mm.empty()
+  const double rms = data.path_mm.empty()
                          ? 0.0
-                         : std::sqrt(sum_squares / static_cast<double>(plot.path_mm.size()));
+                         : std::sqrt(sum_squares / static_cast<double>(data.path_mm.size()));
   figures["material_vs_data"] = {
-      {"rms_residual", rms}, {"max_abs_residual", worst}, {"points", plot.path_mm.size()}};
-
-  // The curve, densely, a little past the calibrated range.
-  std::vector<double> curve_x, curve_y, truth_y, deviation;
-  for (int i = 0; i <= 400; ++i) {
-    const double x = 1.05 * plot.x_max_mm * i / 400.0;
-    curve_x.push_back(x);
-    curve_y.push_back(fitted(x));
-    if (!true_curve.empty()) {
-      truth_y.push_back(true_curve(x));
-      deviation.push_back(curve_y.back() - truth_y.back());
-    }
-  }
+      {"rms_residual", rms}, {"max_abs_residual", worst}, {"points", data.path_mm.size()}};
+  figures["calibrated_range_mm"] = {0.0, data.x_max_mm};
+  nlohmann::json true_json = nullptr;
   if (!true_curve.empty()) {
-    const CurveDeviation dev = curveDeviation(fitted, true_curve, plot.x_max_mm);
+    const CurveDeviation dev = curveDeviation(fitted, true_curve, data.x_max_mm);
     figures["against_true_curve"] = {{"max_abs_deviation", dev.max_abs},
                                      {"at_mm", dev.at_mm},
-                                     {"over_mm", {0.0, plot.x_max_mm}}};
+                                     {"over_mm", {0.0, data.x_max_mm}}};
     spdlog::info("against the true curve: largest deviation {:.5f} at {:.2f} mm (0 .. {:.2f} mm)",
-                 dev.max_abs, dev.at_mm, plot.x_max_mm);
+                 dev.max_abs, dev.at_mm, data.x_max_mm);
+    // The true curve for the page, densely, a little past the calibrated range.
+    std::vector<double> x, y;
+    for (int i = 0; i <= 400; ++i) {
+      x.push_back(1.05 * data.x_max_mm * i / 400.0);
+      y.push_back(true_curve(x.back()));
+    }
+    true_json = {{"path_mm", x}, {"transmission", y}};
   }
-
-  PlotFigure figure;
-  figure.x_label = "path length x (mm)";
-  PlotPanel curve;
-  curve.title = plot.title;
-  curve.y_label = "I(x)";
-  curve.height_weight = 2.0;
-  curve.series.push_back({plot.path_mm,
-                          plot.transmission,
-                          PlotSeries::Style::kPoints,
-                          {40, 90, 200},
-                          plot.data_label});
-  if (!true_curve.empty())
-    curve.series.push_back(
-        {curve_x, truth_y, PlotSeries::Style::kLine, {150, 150, 150}, "true curve (simulation)"});
-  curve.series.push_back({curve_x,
-                          curve_y,
-                          PlotSeries::Style::kLine,
-                          {200, 30, 30},
-                          fmt::format("fitted: {} exponentials", material.terms().size())});
-  figure.panels.push_back(curve);
-  PlotPanel res;
-  res.title = fmt::format("residual: data - fit (rms {:.2g})", rms);
-  res.y_label = "data - I(x)";
-  res.zero_line = true;
-  res.series.push_back({plot.path_mm, residual, PlotSeries::Style::kPoints, {40, 90, 200}, ""});
-  figure.panels.push_back(res);
-  if (!true_curve.empty()) {
-    PlotPanel dev;
-    dev.title = "fit - true curve";
-    dev.y_label = "I(x) - true";
-    dev.zero_line = true;
-    dev.series.push_back({curve_x, deviation, PlotSeries::Style::kLine, {200, 30, 30}, ""});
-    figure.panels.push_back(dev);
-  }
-  writePlotPng(folder / "calibration.png", figure);
-
   figures["software"] = "xgauge " XGAUGE_VERSION_STRING;
+
+  if (html_report) {
+    const nlohmann::json page = {{"calibration", figures},
+                                 {"material", material.toJson()},
+                                 {"data", {{"path_mm", data.path_mm},
+                                           {"transmission", data.transmission},
+                                           {"x_max_mm", data.x_max_mm}}},
+                                 {"true_curve", true_json},
+                                 {"pictures", pictures},
+                                 {"generated", utcTimestamp()}};
+    writeReport(folder / "report.html", ReportKind::kCalibration,
+                "xgauge calibration: " + figures.value("job", std::string()), page);
+  }
   writeFileAtomically(folder / "calibration.json", figures.dump(2) + "\n");
   writeFileAtomically(folder / "material.json", material.toJson().dump(2) + "\n");
 }
 
 void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& result,
-                           const TrueCurve& true_curve, const std::filesystem::path& folder) {
+                           const TrueCurve& true_curve, const std::filesystem::path& folder,
+                           bool html_report) {
   const RampDetection& ramp = result.ramp;
   // The table on the final curve's path axis: eq. 3.7 maps x to x s + x0.
   const double s = (result.x_max_mm - result.x0_mm) / result.x_max_mm;
@@ -127,18 +101,35 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
                               {"path_mm", shifted},
                               {"transmission", result.transmission}}},
                             {"seconds", result.seconds}};
-  CalibrationPlot plot;
-  plot.title = fmt::format("Wedge calibration: {} rows of {}", result.rows.size(),
-                           job.radiograph.image.filename().string());
-  plot.data_label = "rows of the ramp (scatter removed)";
-  plot.path_mm = shifted;
-  plot.transmission = result.transmission;
-  plot.x_max_mm = result.x_max_mm;
-  writeCalibrationOutputs(folder, result.material, figures, plot, true_curve);
+  // The radiograph with the ramp's rows and columns and the white region.
+  nlohmann::json pictures = nullptr;
+  if (html_report && !result.normalized.empty()) {
+    const Image& image = result.normalized;
+    const double lo = std::min(result.rows.front(), result.rows.back());
+    const double hi = std::max(result.rows.front(), result.rows.back());
+    const PixelRect& white = job.radiograph.white_region;
+    const nlohmann::json marks = nlohmann::json::array(
+        {{{"label", "ramp rows used"},
+          {"box", {ramp.column_begin, lo, ramp.column_end - ramp.column_begin, hi - lo + 1}}},
+         {{"label", "white region"}, {"box", {white.x, white.y, white.width, white.height}}}});
+    pictures = {{"kind", "wedge"},
+                {"radiographs",
+                 nlohmann::json::array(
+                     {{{"name", job.radiograph.image.filename().string()},
+                       {"measured", greyPicture(image, image.rect(), {0.0, 1.05}, 800)},
+                       {"marks", marks}}})}};
+  }
+  CalibrationData data;
+  data.path_mm = shifted;
+  data.transmission = result.transmission;
+  data.x_max_mm = result.x_max_mm;
+  writeCalibrationOutputs(folder, result.material, figures, data, true_curve, pictures,
+                          html_report);
 }
 
 void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& result,
-                          const TrueCurve& true_curve, const std::filesystem::path& folder) {
+                          const TrueCurve& true_curve, const std::filesystem::path& folder,
+                          bool html_report) {
   nlohmann::json rounds = nlohmann::json::array();
   for (const PartCalibrationRound& r : result.rounds)
     rounds.push_back({{"material", r.material.toJson()},
@@ -169,20 +160,21 @@ void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& 
       {"poses", poses},
       {"table", {{"path_mm", result.path_mm}, {"transmission", result.transmission}}},
       {"seconds", result.seconds}};
-  CalibrationPlot plot;
-  plot.title = fmt::format("Calibration from a known part: {} path bins", result.path_mm.size());
-  plot.data_label = "pixels binned by path (scatter removed)";
-  plot.path_mm = result.path_mm;
-  plot.transmission = result.transmission;
-  plot.x_max_mm = result.max_path_mm;
-  writeCalibrationOutputs(folder, result.material, figures, plot, true_curve);
-
   // The last pose fit, with the calibrated material: the residual images show
   // what the model does not explain (thesis Figure 5.5, docs/method.md).
   ForwardModel model(*job.inputs, result.material);
   MeasurementResult fitted = result.measurement;
   fitted.theta.resize(static_cast<size_t>(model.size()));  // without the free material's parameters
-  writeMeasurementOutputs(model, fitted, folder / "poses");
+  nlohmann::json pictures = nullptr;
+  if (html_report)
+    pictures = radiographPictures(model, fitted.theta), pictures["kind"] = "part";
+  CalibrationData data;
+  data.path_mm = result.path_mm;
+  data.transmission = result.transmission;
+  data.x_max_mm = result.max_path_mm;
+  writeCalibrationOutputs(folder, result.material, figures, data, true_curve, pictures,
+                          html_report);
+  writeMeasurementOutputs(model, fitted, folder / "poses", false);
 }
 
 }  // namespace xgauge

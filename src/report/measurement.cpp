@@ -7,10 +7,24 @@
 #include "xgauge/loss/loss.h"
 #include "xgauge/measure/measure.h"
 #include "xgauge/measure/model.h"
+#include "xgauge/report/html.h"
 #include "xgauge/version.h"
 #include "xgauge/xray/machine.h"
 
 namespace xgauge {
+
+namespace {
+
+// Six significant digits are enough for a chart; +inf (infeasible) is null.
+nlohmann::json traceJson(const std::vector<double>& trace) {
+  nlohmann::json out = nlohmann::json::array();
+  for (double v : trace)
+    out.push_back(std::isfinite(v) ? nlohmann::json(std::stod(fmt::format("{:.6g}", v)))
+                                   : nlohmann::json(nullptr));
+  return out;
+}
+
+}  // namespace
 
 nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResult& result) {
   const MeasurementJob& job = model.job();
@@ -116,7 +130,8 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                       {"seconds", s.seconds},
                       {"loss_before", s.loss_before},
                       {"loss_after", s.loss_after},
-                      {"termination", s.termination}});
+                      {"termination", s.termination},
+                      {"trace", traceJson(s.trace)}});
   // The digests of the bytes the loader parsed (measure/inputs.h), so that
   // no input is read twice.
   nlohmann::json inputs = model.inputs().sha256;
@@ -139,8 +154,77 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
           {"inputs_sha256", inputs}};
 }
 
+nlohmann::json radiographPictures(ForwardModel& model, std::span<const double> theta) {
+  // The three pictures of each radiograph cover its roi with a margin of a
+  // tenth of its size, so the outline is seen against the open beam.
+  std::vector<Image> measured, simulated, residuals;
+  std::vector<PixelRect> crops, rois;
+  const Machine& machine = model.machine();
+  for (int r = 0; r < model.radiographCount(); ++r) {
+    const PreparedRadiograph& rad = model.radiograph(r);
+    const PixelRect roi = rad.rois.front();
+    const int mx = std::max(8, roi.width / 10), my = std::max(roi.height > 1 ? 8 : 0, roi.height / 10);
+    const int x0 = std::max(0, roi.x - mx), y0 = std::max(0, roi.y - my);
+    const PixelRect crop{x0, y0, std::min(machine.columns, roi.right() + mx) - x0,
+                         std::min(machine.rows, roi.y + roi.height + my) - y0};
+    crops.push_back(crop);
+    rois.push_back(roi);
+    measured.push_back(rad.levels.front().crop(crop));
+    simulated.push_back(model.simulate(theta, r, 0, 2, crop));
+    Image residual(crop.width, crop.height, 0.0f);
+    for (int y = 0; y < crop.height; ++y)
+      for (int x = 0; x < crop.width; ++x) residual(x, y) = simulated.back()(x, y) - measured.back()(x, y);
+    residuals.push_back(std::move(residual));
+  }
+  std::vector<const Image*> in_rois;
+  std::vector<Image> roi_residuals;
+  for (size_t r = 0; r < residuals.size(); ++r)
+    roi_residuals.push_back(residuals[r].crop(
+        {rois[r].x - crops[r].x, rois[r].y - crops[r].y, rois[r].width, rois[r].height}));
+  for (const Image& image : roi_residuals) in_rois.push_back(&image);
+  const double scale = residualScale(in_rois);
+  constexpr int kMaxSide = 640;
+  nlohmann::json list = nlohmann::json::array();
+  for (int r = 0; r < model.radiographCount(); ++r) {
+    const auto i = static_cast<size_t>(r);
+    // One grey window for the measured and simulated pictures of a radiograph.
+    const GreyWindow window = autoWindow(measured[i]);
+    nlohmann::json outline = nlohmann::json::array();
+    for (const Segment2& s : model.outline(theta, r))
+      outline.push_back({s[0].x(), s[0].y(), s[1].x(), s[1].y()});
+    list.push_back({{"name", model.spec(r).name},
+                   {"roi", {rois[i].x, rois[i].y, rois[i].width, rois[i].height}},
+                   {"grey_window", {window.lo, window.hi}},
+                   {"measured", greyPicture(measured[i], crops[i], window, kMaxSide)},
+                   {"simulated", greyPicture(simulated[i], crops[i], window, kMaxSide)},
+                   {"residual", residualPicture(residuals[i], crops[i], scale, kMaxSide)},
+                   {"residual_scale", scale},
+                   {"outline", outline}});
+  }
+  return {{"residual_scale", scale}, {"colour_map", divergingStops()}, {"radiographs", list}};
+}
+
+nlohmann::json measurementContext(const ForwardModel& model) {
+  const MeasurementJob& job = model.job();
+  nlohmann::json dimensions = nlohmann::json::array();
+  for (const Dimension& d : model.part().dimensions())
+    dimensions.push_back({{"name", d.name},
+                          {"nominal", d.nominal},
+                          {"min", d.min},
+                          {"max", d.max},
+                          {"unit", d.unit},
+                          {"description", d.description}});
+  return {{"part", {{"file", job.part_file.string()},
+                    {"description", model.part().description()},
+                    {"dimensions", dimensions}}},
+          {"machine", {{"file", job.machine_file.string()}, {"settings", model.machine().toJson()}}},
+          {"material", {{"file", job.material_file.string()}, {"curve", model.material().toJson()}}},
+          {"job_description", job.description}};
+}
+
 void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,
-                             const std::filesystem::path& folder) {
+                             const std::filesystem::path& folder, bool html_report,
+                             const nlohmann::json& truth) {
   createOutputFolder(folder);
 
   // Final simulated radiographs and the differences over each roi.
@@ -155,7 +239,17 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
     writeDifferencePng(folder / ("difference_" + name + ".png"), difference);
   }
 
-  writeFileAtomically(folder / "result.json", measurementJson(model, result).dump(2) + "\n");
+  const nlohmann::json json = measurementJson(model, result);
+  if (html_report) {
+    const nlohmann::json data = {{"result", json},
+                                 {"context", measurementContext(model)},
+                                 {"generated", utcTimestamp()},
+                                 {"truth", truth},
+                                 {"pictures", radiographPictures(model, result.theta)}};
+    writeReport(folder / "report.html", ReportKind::kMeasurement,
+                "xgauge measurement: " + model.job().file.filename().string(), data);
+  }
+  writeFileAtomically(folder / "result.json", json.dump(2) + "\n");
 }
 
 }  // namespace xgauge

@@ -1,5 +1,6 @@
 #include "xgauge/study/study.h"
 
+#include "xgauge/report/html.h"
 #include "xgauge/report/measurement.h"
 
 #include "xgauge/core/atomic_file.h"
@@ -363,7 +364,7 @@ StudySummary runStudy(const StudyOptions& options) {
       ForwardModel model(run_inputs);
       const MeasurementResult result = measure(model, model.start());
       if (options.images) {
-        writeMeasurementOutputs(model, result, folder);
+        writeMeasurementOutputs(model, result, folder, true, nlohmann::json(truth.dimensions));
       } else {
         writeFileAtomically(result_file, measurementJson(model, result).dump(2) + "\n");
       }
@@ -454,8 +455,7 @@ StudySummary runStudy(const StudyOptions& options) {
                         {"expanded_uncertainty_mm", run.expanded_mm},
                         {"combinations", combination_errors}});
   }
-  writeFileAtomically(options.output / "study.json",
-                      nlohmann::json({{"dataset", options.dataset.string()},
+  const nlohmann::json study_json = {{"dataset", options.dataset.string()},
                                       {"combinations", options.combinations},
                                       {"dimensions", per_dim},
                                       {"mean_abs_mm", summary.mean_abs_mm_all},
@@ -463,9 +463,15 @@ StudySummary runStudy(const StudyOptions& options) {
                                       {"pooled_coverage", coverageJson(summary.pooled)},
                                       {"combinations_coverage", combos},
                                       {"median_seconds", summary.median_seconds},
-                                      {"runs", all_runs}})
-                              .dump(2) +
-                          "\n");
+                                      {"runs", all_runs}};
+  writeFileAtomically(options.output / "study.json", study_json.dump(2) + "\n");
+  if (options.report)
+    writeReport(options.output / "report.html", ReportKind::kStudy,
+                "xgauge study: " + options.dataset.filename().string(),
+                {{"study", study_json},
+                 {"settings", {{"file", options.settings.string()}, {"json", settings}}},
+                 {"truth", truth.dimensions},
+                 {"generated", utcTimestamp()}});
   return summary;
 }
 

@@ -39,6 +39,7 @@
 
 #include "xgauge/calibrate/curve.h"
 #include "xgauge/calibrate/ramp.h"
+#include "xgauge/image/image.h"
 #include "xgauge/material/exponential_sum.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/xray/machine.h"
@@ -78,6 +79,7 @@ struct WedgeCalibration {
   double x0_mm = 0.0;  // eq. 3.7
   ExponentialSum material{{{1.0, 0.0}}};
   double seconds = 0.0;
+  Image normalized;  // the radiograph as the ramp was found in (scatter removed)
 };
 
 WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job);

@@ -9,8 +9,15 @@
 
 #include <cstdint>
 #include <filesystem>
+#include <string>
+#include <vector>
 
 namespace xgauge {
+
+// PNG bytes of 8-bit pixels, row-major from the top (`channels`: 1 grey,
+// 3 RGB, 4 RGBA), encoded in memory by stb_image_write. Throws Error when
+// the sizes do not match or encoding fails.
+std::string encodePng(int width, int height, int channels, const std::vector<uint8_t>& pixels);
 
 // Grey level of `value` under a linear window: window_lo -> 0,
 // window_hi -> 255, rounded to nearest and clamped; NaN -> 0.

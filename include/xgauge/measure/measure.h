@@ -26,6 +26,10 @@ struct StageReport {
   double loss_before = 0.0;  // the stage's objective (for the reweighted least-squares
   double loss_after = 0.0;   // stage: the weighted sum of squared residuals)
   std::string termination;
+  // The objective as the stage went: at each evaluation in order (derivative
+  // -free stages; +inf where infeasible), or after each iteration (least
+  // squares). For the report's chart of the loss by stage and evaluation.
+  std::vector<double> trace;
 };
 
 struct MeasuredDimension {

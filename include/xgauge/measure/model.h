@@ -32,6 +32,7 @@
 #include "xgauge/material/transmission_table.h"
 #include "xgauge/measure/inputs.h"
 #include "xgauge/measure/parameters.h"
+#include "xgauge/xray/contour.h"
 #include "xgauge/xray/machine.h"
 #include "xgauge/xray/renderer.h"
 
@@ -127,6 +128,9 @@ class ForwardModel {
   // `region` (pixels of `level`). Requires a feasible theta.
   Image pathLengths(std::span<const double> theta, int radiograph, int level,
                     const PixelRect& region);
+  // The posed part's outline on the detector (xray/contour.h), in full-size
+  // continuous pixel coordinates. Requires a feasible theta.
+  std::vector<Segment2> outline(std::span<const double> theta, int radiograph);
   // The scatter as simulate() adds it (requires job().scatter.enabled()).
   ScatterEstimate scatter(std::span<const double> theta, int radiograph, int level);
 

@@ -1,7 +1,7 @@
 // What a calibration writes for people and scripts: the material file (the
-// machine-readable result jobs read), its figures as JSON and a plot of the
-// data with the fitted curve and its residual (the thesis's Figure 5.8,
-// docs/method.md). docs/formats.md documents every key.
+// machine-readable result jobs read), its figures as JSON and the HTML
+// report with the data, the fitted curve and its residual (the thesis's
+// Figure 5.8, docs/method.md). docs/formats.md documents every key.
 #pragma once
 
 #include "xgauge/calibrate/curve.h"
@@ -17,32 +17,38 @@
 
 namespace xgauge {
 
-struct CalibrationPlot {
-  std::string title;
-  std::string data_label;
+struct CalibrationData {
   std::vector<double> path_mm, transmission;  // the data, on the final curve's path axis
   double x_max_mm = 0.0;                      // the calibrated range
 };
 
-// Into `folder` (created if needed), each file atomically: calibration.png,
-// calibration.json (`figures` plus the residual of the material against the
-// data and, with a true curve, the largest deviation from it over 0 .. x_max)
-// and, last, material.json, so that a failure leaves no material file.
+// Into `folder` (created if needed), each file atomically: calibration.json
+// (`figures` plus the residual of the material against the data and, with a
+// true curve, the largest deviation from it over 0 .. x_max), with
+// `html_report` report.html (report/html.h: the data, the fitted and true
+// curves, the residual and `pictures`, the radiograph as the calibration
+// saw it) and, last, material.json, so that a failure leaves no material
+// file.
 void writeCalibrationOutputs(const std::filesystem::path& folder, const ExponentialSum& material,
-                             nlohmann::json figures, const CalibrationPlot& plot,
-                             const TrueCurve& true_curve);
+                             nlohmann::json figures, const CalibrationData& data,
+                             const TrueCurve& true_curve, const nlohmann::json& pictures,
+                             bool html_report);
 
 // material.json, calibration.json (every figure and the table) and
-// calibration.png (data, fitted curve and residual) into `folder`, each
-// written atomically. With `true_curve` (a simulated dataset's transmission
-// table), the figures also give the largest deviation from it over 0 .. x_max.
+// report.html (with the normalized radiograph and the ramp found in it)
+// into `folder`, each written atomically. With `true_curve` (a simulated
+// dataset's transmission table), the figures also give the largest
+// deviation from it over 0 .. x_max.
 void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& result,
-                           const TrueCurve& true_curve, const std::filesystem::path& folder);
+                           const TrueCurve& true_curve, const std::filesystem::path& folder,
+                           bool html_report = true);
 
-// material.json, calibration.json, calibration.png (as
-// writeCalibrationOutputs), and the last pose fit's result.json with its
-// simulated and difference images (report/measurement.h) in `folder`/poses.
+// material.json, calibration.json, report.html (as writeCalibrationOutputs,
+// with the last pose fit's radiographs), and that pose fit's result.json
+// with its simulated and difference images (report/measurement.h) in
+// `folder`/poses.
 void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& result,
-                          const TrueCurve& true_curve, const std::filesystem::path& folder);
+                          const TrueCurve& true_curve, const std::filesystem::path& folder,
+                          bool html_report = true);
 
 }  // namespace xgauge

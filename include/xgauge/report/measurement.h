@@ -6,16 +6,34 @@
 #include "xgauge/measure/measure.h"
 #include "xgauge/measure/model.h"
 
+#include <nlohmann/json.hpp>
+
 #include <filesystem>
+#include <span>
 
 namespace xgauge {
 
 // Writes result.json (with the SHA-256 of every input as it was read), the
 // final simulated radiographs and the difference images (float TIFF and
-// diverging-colour PNG) into `folder`, each file atomically, from the model
-// that measured.
+// diverging-colour PNG) and, with `html_report`, report.html (report/html.h)
+// into `folder`, each file atomically, from the model that measured. `truth`
+// (a virtual lab's true dimensions, name -> value; null when unknown) is
+// shown beside the measured values in the page.
 void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,
-                             const std::filesystem::path& folder);
+                             const std::filesystem::path& folder, bool html_report = true,
+                             const nlohmann::json& truth = nullptr);
+
+// The pictures of a measurement's page, {"residual_scale", "colour_map",
+// "radiographs"}; per radiograph the normalized radiograph, the simulated
+// one and the residual (simulated - measured) around its roi, the residual
+// under one symmetric colour scale shared by all radiographs (residualScale
+// over every roi), and the fitted part's outline (xray/contour.h) in
+// detector pixels.
+nlohmann::json radiographPictures(ForwardModel& model, std::span<const double> theta);
+
+// The part model's dimensions (nominal and range), the machine and the
+// material the measurement used, for the page's header.
+nlohmann::json measurementContext(const ForwardModel& model);
 
 // The contents of result.json (docs/formats.md): dimensions with their U,
 // tolerances and verdicts, the uncertainty budget, the self-checks' warnings

@@ -36,6 +36,7 @@ struct StudyOptions {
   int limit = 0;  // 0 = all runs; else the first `limit`
   std::filesystem::path output;
   bool images = false;  // also write simulated and difference images per run
+  bool report = true;   // write report.html (report/html.h) beside study.json
 };
 
 struct StudyRun {

@@ -25,7 +25,7 @@
       if (v === null || v === undefined || v === false) continue;
       node.setAttribute(k, v === true ? '' : String(v));
     }
-    for (const c of children.flat()) {
+    for (const c of children.flat(Infinity)) {
       if (c === null || c === undefined || c === false) continue;
       node.append(c instanceof Node ? c : document.createTextNode(String(c)));
     }
@@ -34,7 +34,7 @@
   function svg(tag, attrs, ...children) {
     const node = document.createElementNS(SVG, tag);
     for (const [k, v] of Object.entries(attrs || {})) node.setAttribute(k, String(v));
-    for (const c of children.flat()) if (c) node.append(c);
+    for (const c of children.flat(Infinity)) if (c) node.append(c);
     return node;
   }
   const isNum = (v) => typeof v === 'number' && isFinite(v);
@@ -82,8 +82,13 @@
     const options = {
       width: width,
       height: opts.height || 260,
-      scales: { x: { time: false }, y: opts.logY ? { distr: 3 } : {} },
-      axes: [{ label: opts.xLabel || '' }, { label: opts.yLabel || '', size: 70 }],
+      scales: {
+        x: Object.assign({ time: false }, opts.xRange ? { range: opts.xRange } : {}),
+        y: Object.assign(opts.logY ? { distr: 3 } : {}, opts.yRange ? { range: opts.yRange } : {}),
+      },
+      axes: [Object.assign({ label: opts.xLabel || '' }, opts.xIncrs ? { incrs: opts.xIncrs } : {}),
+        { label: opts.yLabel || '', size: 70 }],
+      legend: { show: opts.legend !== false },
       series: [{ label: opts.xLabel || 'x' }].concat(series.map((s) => {
         const out = {
           label: s.label,
@@ -493,12 +498,13 @@
       const us = runs.map((r) => (r.expanded_uncertainty_mm || {})[name]);
       // The bars' ends as invisible series, so that the y range holds them.
       const end = (sign) => errors.map((e, i) => (isNum(e) && isNum(us[i]) ? e + sign * us[i] : null));
-      chart(charts, name, xs, [
+      chart(charts, `${name}: error ± U (k = 2), mm`, xs, [
         { label: 'error (mm)', stroke: '#1f77b4', points: true, size: 6, values: errors.map((v) => (isNum(v) ? v : null)) },
         { label: 'error − U', stroke: 'rgba(0,0,0,0)', values: end(-1), width: 0 },
         { label: 'error + U', stroke: 'rgba(0,0,0,0)', values: end(1), width: 0 },
       ], {
-        xLabel: 'run', yLabel: 'error (mm)', height: 220,
+        xLabel: 'run', yLabel: 'error (mm)', height: 220, legend: false,
+        xRange: [0.5, runs.length + 0.5], xIncrs: [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000],
         hooks: { draw: [(u) => errorBars(u, errors, us)] },
       });
     }
@@ -515,7 +521,9 @@
       const box = el('div', {});
       root.append(section('Time per measurement', box));
       chart(box, `Distribution over ${seconds.length} runs (median ${fixed(study.median_seconds, 1)} s)`, centres,
-        [{ label: 'runs', stroke: '#2ca02c', bars: true, values: counts }], { xLabel: 'seconds', yLabel: 'runs', height: 220 });
+        [{ label: 'runs', stroke: '#2ca02c', bars: true, values: counts }],
+        { xLabel: 'seconds', yLabel: 'runs', height: 220, legend: false,
+          xRange: [lo - 0.5 * width, lo + (bins + 0.5) * width], yRange: [0, Math.max(...counts) + 1] });
     }
 
     const cell = (r, d) => {

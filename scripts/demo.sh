@@ -5,8 +5,9 @@
 # material from the wedge's calibration shot, then measure Prism A from two
 # radiographs (t00 and t03, 30 mm apart) and print the dimensions against the
 # truth. Results: out/calibration_wedge_small/ (material.json,
-# calibration.json, calibration.png) and out/prism_a_small/ (result.json,
-# simulated and difference images, measure.log).
+# calibration.json, report.html) and out/prism_a_small/ (report.html, the
+# inspection report to open in a browser; result.json, simulated and
+# difference images, measure.log).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bash scripts/install-deps.sh
@@ -18,3 +19,5 @@ xgauge=build/apps/xgauge/xgauge
 "$xgauge" calibrate wedge examples/calibrate_wedge_small.json -o out/calibration_wedge_small \
     --truth data/wedge_small/truth.json
 "$xgauge" measure examples/prism_a_small_job.json -o out/prism_a_small --truth data/prism_a_small/truth.json
+
+echo "demo: open out/prism_a_small/report.html and out/calibration_wedge_small/report.html in a browser"

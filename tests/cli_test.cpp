@@ -329,7 +329,7 @@ TEST_F(CalibrateWedge, WritesTheMaterialFiguresAndPlot) {
   const size_t at = r.output.find("thin end at row ");
   ASSERT_NE(at, std::string::npos) << r.output;
   EXPECT_NEAR(std::stod(r.output.substr(at + 16)), 40.0, 1.0) << r.output;
-  for (const char* file : {"material.json", "calibration.json", "calibration.png"})
+  for (const char* file : {"material.json", "calibration.json", "report.html"})
     EXPECT_TRUE(fs::exists(out("cal") + "/" + file)) << file;
 }
 
@@ -414,6 +414,7 @@ namespace {
 TEST_F(MeasureJob, ExitStatusGivesTheVerdicts) {
   const CommandResult first = run("measure " + job() + " -o " + out("plain") + " -q");
   ASSERT_EQ(first.status, 0) << first.output;
+  EXPECT_TRUE(fs::exists(out("plain") + "/report.html"));
   std::ifstream in(out("plain") + "/result.json");
   const nlohmann::json result = nlohmann::json::parse(in);
   const nlohmann::json& size_x = result.at("dimensions").at(0);
@@ -426,7 +427,9 @@ TEST_F(MeasureJob, ExitStatusGivesTheVerdicts) {
     const std::string tolerances = fmt::format(
         R"(, "tolerances": {{"size_x": {{"nominal": {}, "lower": {}, "upper": {}}}}})", nominal,
         lower, upper);
-    const CommandResult r = run("measure " + job("", tolerances) + " -o " + out(name) + " -q");
+    const CommandResult r =
+        run("measure " + job("", tolerances) + " -o " + out(name) + " -q --no-report");
+    EXPECT_FALSE(fs::exists(out(name) + "/report.html"));
     std::ifstream file(out(name) + "/result.json");
     const nlohmann::json judged = nlohmann::json::parse(file);
     EXPECT_EQ(judged.at("dimensions").at(0).at("value_mm").get<double>(), value);  // deterministic

@@ -207,7 +207,7 @@ TEST_F(Calibrate, WedgeGivesBackTheMaterialItWasRenderedWith) {
 
   writeWedgeCalibration(job, result, {}, dir_ / "out");
   EXPECT_TRUE(fs::exists(dir_ / "out" / "material.json"));
-  EXPECT_TRUE(fs::exists(dir_ / "out" / "calibration.png"));
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "report.html"));
   const ExponentialSum reread = ExponentialSum::load(dir_ / "out" / "material.json");
   EXPECT_EQ(reread.transmission(7.0), result.material.transmission(7.0));
 

@@ -239,9 +239,14 @@ MeasurementInputs studyRunInputs(const nlohmann::json& job, const StudyInputs& i
                                  const fs::path& settings_file, PreparedShots& shots) {
   MeasurementInputs in;
   const ConfigNode root = ConfigNode::fromJson(job, settings_file.string());
-  in.job = MeasurementJob::fromConfig(root, settings_file, *inputs.part, true);
+  // Each run evaluates a part model of its own: evaluating one (muparser's
+  // variables and stack) is not thread-safe, and the runs go in parallel.
+  // Sharing one made runs fail at random ("the start values do not make a
+  // valid part") or fit a garbled part.
+  auto part = std::make_shared<const PartModel>(*inputs.part);
+  in.job = MeasurementJob::fromConfig(root, settings_file, *part, true);
   root.finish();
-  in.part = inputs.part;
+  in.part = std::move(part);
   in.machine = inputs.machine;
   in.material = inputs.material;
   for (const RadiographSpec& spec : in.job.radiographs) in.radiographs.push_back(shots.get(spec));

@@ -87,7 +87,8 @@
         y: Object.assign(opts.logY ? { distr: 3 } : {}, opts.yRange ? { range: opts.yRange } : {}),
       },
       axes: [Object.assign({ label: opts.xLabel || '' }, opts.xIncrs ? { incrs: opts.xIncrs } : {}),
-        { label: opts.yLabel || '', size: 70 }],
+        Object.assign({ label: opts.yLabel || '', size: 70 },
+          opts.logY ? { values: (u, splits) => splits.map((v) => (v === null ? '' : v >= 0.001 ? String(Number(v.toPrecision(2))) : v.toExponential(0))) } : {})],
       legend: { show: opts.legend !== false },
       series: [{ label: opts.xLabel || 'x' }].concat(series.map((s) => {
         const out = {

@@ -69,6 +69,13 @@
       '#8c564b', '#e377c2', '#7f7f7f', '#bcbd22'];
     return colours[i % colours.length];
   }
+  // Axis labels with the few digits that tell ticks apart (uPlot's default
+  // shows 0.0015 as 0.001); tiny values of a log axis in exponent form.
+  function tickLabel(v) {
+    if (v === null || v === undefined) return '';
+    if (v !== 0 && Math.abs(v) < 1e-3) return v.toExponential(1).replace(/\.0e/, 'e');
+    return String(Number(v.toPrecision(3)));
+  }
   function chartWidth(container) {
     return Math.max(320, Math.floor(container.getBoundingClientRect().width || 560));
   }
@@ -86,9 +93,9 @@
         x: Object.assign({ time: false }, opts.xRange ? { range: opts.xRange } : {}),
         y: Object.assign(opts.logY ? { distr: 3 } : {}, opts.yRange ? { range: opts.yRange } : {}),
       },
-      axes: [Object.assign({ label: opts.xLabel || '' }, opts.xIncrs ? { incrs: opts.xIncrs } : {}),
-        Object.assign({ label: opts.yLabel || '', size: 70 },
-          opts.logY ? { values: (u, splits) => splits.map((v) => (v === null ? '' : v >= 0.001 ? String(Number(v.toPrecision(2))) : v.toExponential(0))) } : {})],
+      axes: [Object.assign({ label: opts.xLabel || '' }, opts.xIncrs ? { incrs: opts.xIncrs } : {},
+        opts.xValues ? { values: opts.xValues } : {}),
+        { label: opts.yLabel || '', size: 70, values: (u, splits) => splits.map(tickLabel) }],
       legend: { show: opts.legend !== false },
       series: [{ label: opts.xLabel || 'x' }].concat(series.map((s) => {
         const out = {
@@ -506,6 +513,7 @@
       ], {
         xLabel: 'run', yLabel: 'error (mm)', height: 220, legend: false,
         xRange: [0.5, runs.length + 0.5], xIncrs: [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000],
+        xValues: (u, splits) => splits.map((v) => (runs[v - 1] ? runs[v - 1].id : '')),
         hooks: { draw: [(u) => errorBars(u, errors, us)] },
       });
     }

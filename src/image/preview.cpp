@@ -22,8 +22,8 @@ namespace xgauge {
 
 std::string encodePng(int width, int height, int channels, const std::vector<uint8_t>& pixels) {
   if (width <= 0 || height <= 0 || (channels != 1 && channels != 3 && channels != 4) ||
-      pixels.size() != static_cast<size_t>(width) * static_cast<size_t>(height) *
-                           static_cast<size_t>(channels))
+      pixels.size() !=
+          static_cast<size_t>(width) * static_cast<size_t>(height) * static_cast<size_t>(channels))
     throw Error(fmt::format("cannot encode a {} x {} PNG of {} channels from {} bytes", width,
                             height, channels, pixels.size()));
   std::string png;

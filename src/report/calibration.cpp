@@ -2,8 +2,8 @@
 
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/core/output.h"
-#include "xgauge/report/measurement.h"
 #include "xgauge/report/html.h"
+#include "xgauge/report/measurement.h"
 #include "xgauge/version.h"
 
 #include <spdlog/spdlog.h>
@@ -53,9 +53,10 @@ void writeCalibrationOutputs(const std::filesystem::path& folder, const Exponent
   if (html_report) {
     const nlohmann::json page = {{"calibration", figures},
                                  {"material", material.toJson()},
-                                 {"data", {{"path_mm", data.path_mm},
-                                           {"transmission", data.transmission},
-                                           {"x_max_mm", data.x_max_mm}}},
+                                 {"data",
+                                  {{"path_mm", data.path_mm},
+                                   {"transmission", data.transmission},
+                                   {"x_max_mm", data.x_max_mm}}},
                                  {"true_curve", true_json},
                                  {"pictures", pictures},
                                  {"generated", utcTimestamp()}};
@@ -112,12 +113,12 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
         {{{"label", "ramp rows used"},
           {"box", {ramp.column_begin, lo, ramp.column_end - ramp.column_begin, hi - lo + 1}}},
          {{"label", "white region"}, {"box", {white.x, white.y, white.width, white.height}}}});
-    pictures = {{"kind", "wedge"},
-                {"radiographs",
-                 nlohmann::json::array(
-                     {{{"name", job.radiograph.image.filename().string()},
-                       {"measured", greyPicture(image, image.rect(), {0.0, 1.05}, 800)},
-                       {"marks", marks}}})}};
+    pictures = {
+        {"kind", "wedge"},
+        {"radiographs",
+         nlohmann::json::array({{{"name", job.radiograph.image.filename().string()},
+                                 {"measured", greyPicture(image, image.rect(), {0.0, 1.05}, 800)},
+                                 {"marks", marks}}})}};
   }
   CalibrationData data;
   data.path_mm = shifted;
@@ -166,8 +167,7 @@ void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& 
   MeasurementResult fitted = result.measurement;
   fitted.theta.resize(static_cast<size_t>(model.size()));  // without the free material's parameters
   nlohmann::json pictures = nullptr;
-  if (html_report)
-    pictures = radiographPictures(model, fitted.theta), pictures["kind"] = "part";
+  if (html_report) pictures = radiographPictures(model, fitted.theta), pictures["kind"] = "part";
   CalibrationData data;
   data.path_mm = result.path_mm;
   data.transmission = result.transmission;

@@ -9,8 +9,8 @@
 #include <fmt/chrono.h>
 #include <openssl/evp.h>
 
-#include <chrono>
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <vector>
 
@@ -22,11 +22,20 @@ std::string escapeHtml(std::string_view text) {
   std::string out;
   for (char c : text) {
     switch (c) {
-      case '&': out += "&amp;"; break;
-      case '<': out += "&lt;"; break;
-      case '>': out += "&gt;"; break;
-      case '"': out += "&quot;"; break;
-      default: out += c;
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
     }
   }
   return out;
@@ -64,9 +73,12 @@ nlohmann::json pictureJson(const std::string& png, const PixelRect& at, int fact
 
 std::string_view reportKindName(ReportKind kind) {
   switch (kind) {
-    case ReportKind::kMeasurement: return "measurement";
-    case ReportKind::kCalibration: return "calibration";
-    case ReportKind::kStudy: return "study";
+    case ReportKind::kMeasurement:
+      return "measurement";
+    case ReportKind::kCalibration:
+      return "calibration";
+    case ReportKind::kStudy:
+      return "study";
   }
   return "unknown";
 }
@@ -76,8 +88,10 @@ std::string reportPage(ReportKind kind, std::string_view title, const nlohmann::
   // the script element, and JSON.parse reads it back as '<'.
   std::string json;
   for (char c : data.dump()) {
-    if (c == '<') json += "\\u003c";
-    else json += c;
+    if (c == '<')
+      json += "\\u003c";
+    else
+      json += c;
   }
   std::string page;
   page.reserve(json.size() + web::kUplotJs.size() + web::kReportJs.size() + 8192);
@@ -143,7 +157,8 @@ nlohmann::json greyPicture(const Image& image, const PixelRect& at, const GreyWi
   std::vector<uint8_t> pixels;
   pixels.reserve(static_cast<size_t>(small.width()) * static_cast<size_t>(small.height()));
   for (int y = 0; y < small.height(); ++y)
-    for (int x = 0; x < small.width(); ++x) pixels.push_back(greyLevel(small(x, y), window.lo, window.hi));
+    for (int x = 0; x < small.width(); ++x)
+      pixels.push_back(greyLevel(small(x, y), window.lo, window.hi));
   return pictureJson(encodePng(small.width(), small.height(), 1, pixels), at, factor);
 }
 
@@ -179,8 +194,9 @@ double residualScale(const std::vector<const Image*>& images) {
       for (int x = 0; x < image->width(); ++x)
         if (std::isfinite((*image)(x, y))) magnitudes.push_back(std::abs((*image)(x, y)));
   if (magnitudes.empty()) return 1.0;
-  const size_t k = std::min(magnitudes.size() - 1,
-                            static_cast<size_t>(std::ceil(0.995 * static_cast<double>(magnitudes.size() - 1))));
+  const size_t k =
+      std::min(magnitudes.size() - 1,
+               static_cast<size_t>(std::ceil(0.995 * static_cast<double>(magnitudes.size() - 1))));
   std::nth_element(magnitudes.begin(), magnitudes.begin() + static_cast<std::ptrdiff_t>(k),
                    magnitudes.end());
   const double raw = std::max(1e-6, static_cast<double>(magnitudes[k]));

@@ -163,7 +163,8 @@ nlohmann::json radiographPictures(ForwardModel& model, std::span<const double> t
   for (int r = 0; r < model.radiographCount(); ++r) {
     const PreparedRadiograph& rad = model.radiograph(r);
     const PixelRect roi = rad.rois.front();
-    const int mx = std::max(8, roi.width / 10), my = std::max(roi.height > 1 ? 8 : 0, roi.height / 10);
+    const int mx = std::max(8, roi.width / 10),
+              my = std::max(roi.height > 1 ? 8 : 0, roi.height / 10);
     const int x0 = std::max(0, roi.x - mx), y0 = std::max(0, roi.y - my);
     const PixelRect crop{x0, y0, std::min(machine.columns, roi.right() + mx) - x0,
                          std::min(machine.rows, roi.y + roi.height + my) - y0};
@@ -173,7 +174,8 @@ nlohmann::json radiographPictures(ForwardModel& model, std::span<const double> t
     simulated.push_back(model.simulate(theta, r, 0, 2, crop));
     Image residual(crop.width, crop.height, 0.0f);
     for (int y = 0; y < crop.height; ++y)
-      for (int x = 0; x < crop.width; ++x) residual(x, y) = simulated.back()(x, y) - measured.back()(x, y);
+      for (int x = 0; x < crop.width; ++x)
+        residual(x, y) = simulated.back()(x, y) - measured.back()(x, y);
     residuals.push_back(std::move(residual));
   }
   std::vector<const Image*> in_rois;
@@ -193,13 +195,13 @@ nlohmann::json radiographPictures(ForwardModel& model, std::span<const double> t
     for (const Segment2& s : model.outline(theta, r))
       outline.push_back({s[0].x(), s[0].y(), s[1].x(), s[1].y()});
     list.push_back({{"name", model.spec(r).name},
-                   {"roi", {rois[i].x, rois[i].y, rois[i].width, rois[i].height}},
-                   {"grey_window", {window.lo, window.hi}},
-                   {"measured", greyPicture(measured[i], crops[i], window, kMaxSide)},
-                   {"simulated", greyPicture(simulated[i], crops[i], window, kMaxSide)},
-                   {"residual", residualPicture(residuals[i], crops[i], scale, kMaxSide)},
-                   {"residual_scale", scale},
-                   {"outline", outline}});
+                    {"roi", {rois[i].x, rois[i].y, rois[i].width, rois[i].height}},
+                    {"grey_window", {window.lo, window.hi}},
+                    {"measured", greyPicture(measured[i], crops[i], window, kMaxSide)},
+                    {"simulated", greyPicture(simulated[i], crops[i], window, kMaxSide)},
+                    {"residual", residualPicture(residuals[i], crops[i], scale, kMaxSide)},
+                    {"residual_scale", scale},
+                    {"outline", outline}});
   }
   return {{"residual_scale", scale}, {"colour_map", divergingStops()}, {"radiographs", list}};
 }
@@ -214,12 +216,14 @@ nlohmann::json measurementContext(const ForwardModel& model) {
                           {"max", d.max},
                           {"unit", d.unit},
                           {"description", d.description}});
-  return {{"part", {{"file", job.part_file.string()},
-                    {"description", model.part().description()},
-                    {"dimensions", dimensions}}},
-          {"machine", {{"file", job.machine_file.string()}, {"settings", model.machine().toJson()}}},
-          {"material", {{"file", job.material_file.string()}, {"curve", model.material().toJson()}}},
-          {"job_description", job.description}};
+  return {
+      {"part",
+       {{"file", job.part_file.string()},
+        {"description", model.part().description()},
+        {"dimensions", dimensions}}},
+      {"machine", {{"file", job.machine_file.string()}, {"settings", model.machine().toJson()}}},
+      {"material", {{"file", job.material_file.string()}, {"curve", model.material().toJson()}}},
+      {"job_description", job.description}};
 }
 
 void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,

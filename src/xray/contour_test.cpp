@@ -11,17 +11,22 @@ namespace {
 
 using testing::kParts;
 
+// The contour of a 20 x 30 x 10 mm cuboid (parts/cuboid.json) at
+// `translation` without rotation, seen by a 512^2 detector of 0.2 mm.
+std::vector<Segment2> cuboidContour(const Vec3& translation) {
+  const PartModel cuboid = PartModel::load(kParts + "cuboid.json");
+  const TriangleMesh mesh = cuboid.mesh(std::vector<double>{20.0, 30.0, 10.0});
+  Pose pose;
+  pose.translation_mm = translation;
+  std::vector<Vec3> storage;
+  return projectedContour(testing::squareMachine(512, 0.2), testing::posed(mesh, pose, storage));
+}
+
 // A cuboid squarely in front of the source on the axis: its side walls face
 // away, so the contour is the four edges of its face nearest the source,
 // projected with that face's magnification D / (D - z).
 TEST(Contour, CuboidFacingTheSourceIsItsNearFace) {
-  const PartModel cuboid = PartModel::load(kParts + "cuboid.json");
-  const TriangleMesh mesh = cuboid.mesh(std::vector<double>{20.0, 30.0, 10.0});
-  const Machine machine = testing::squareMachine(512, 0.2);
-  Pose pose;
-  pose.translation_mm = Vec3(0.0, 0.0, 400.0);
-  std::vector<Vec3> storage;
-  const auto segments = projectedContour(machine, testing::posed(mesh, pose, storage));
+  const auto segments = cuboidContour(Vec3(0.0, 0.0, 400.0));
   ASSERT_EQ(segments.size(), 4u);
   const double m = 1000.0 / (1000.0 - 405.0);  // the near face at z = 400 + 5
   double min_u = 1e9, max_u = -1e9, min_v = 1e9, max_v = -1e9;
@@ -40,13 +45,7 @@ TEST(Contour, CuboidFacingTheSourceIsItsNearFace) {
 // Moved off axis, one side wall turns to the source and the contour runs
 // along the far edge of that wall: still a closed loop of six edges.
 TEST(Contour, OffAxisCuboidShowsOneWall) {
-  const PartModel cuboid = PartModel::load(kParts + "cuboid.json");
-  const TriangleMesh mesh = cuboid.mesh(std::vector<double>{20.0, 30.0, 10.0});
-  const Machine machine = testing::squareMachine(512, 0.2);
-  Pose pose;
-  pose.translation_mm = Vec3(40.0, 0.0, 400.0);
-  std::vector<Vec3> storage;
-  const auto segments = projectedContour(machine, testing::posed(mesh, pose, storage));
+  const auto segments = cuboidContour(Vec3(40.0, 0.0, 400.0));
   EXPECT_EQ(segments.size(), 6u);
   // Closed loop: every end point is shared by exactly two segments.
   for (const auto& s : segments)

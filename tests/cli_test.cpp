@@ -253,6 +253,11 @@ TEST_F(MeasureJob, UnknownKey) {
                    "unknown key 'schedul'; did you mean 'schedule'?");
 }
 
+TEST_F(MeasureJob, TranslationUncertaintyOnAFreeRadiograph) {
+  // Only a translated radiograph has a distance, and so its uncertainty.
+  expectJobFailure(job(R"(, "distance_uncertainty_mm": 0.01)"), "distance_uncertainty_mm");
+}
+
 TEST_F(MeasureJob, StartOutsideBounds) {
   expectJobFailure(job("", R"(, "dimensions": {"start": {"size_x": 99}})"), "outside the bounds");
 }

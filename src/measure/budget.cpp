@@ -212,7 +212,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   for (size_t k = 0; k < inputs.job.radiographs.size(); ++k) {
     const RadiographSpec& spec = inputs.job.radiographs[k];
     if (spec.pattern != Acquisition::kTranslated) continue;
-    const double u = kDefaultTranslationUncertaintyMm;
+    const double u = spec.distance_uncertainty_mm;
     withInputs("translation " + spec.name,
                fmt::format("distance {:.4f} +- {:.2g} mm", spec.distance_mm, u), "mm", u,
                [&](MeasurementInputs& in, double amount) {

@@ -9,10 +9,6 @@
 
 namespace xgauge {
 
-// The translation distance's standard uncertainty where a job states none:
-// a linear stage's positioning, 5 um.
-inline constexpr double kDefaultTranslationUncertaintyMm = 0.005;
-
 // The budget of every free dimension at the solution theta, from the
 // Jacobian and residuals there (fit, over every radiograph) and one
 // re-simulation per influence quantity.

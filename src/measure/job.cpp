@@ -215,6 +215,8 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
           r.at("reference")
               .fail("the reference of a translated radiograph must not be translated itself");
         spec.distance_mm = r.at("distance_mm").number(1e-6, 1e4);
+        if (r.has("distance_uncertainty_mm"))
+          spec.distance_uncertainty_mm = r.at("distance_uncertainty_mm").number(0.0, 100.0);
       }
     }
     if (spec.pattern == Acquisition::kKnown) spec.known_pose = poseFromConfig(r.at("pose"));

@@ -112,7 +112,7 @@ class Uncertainty : public ::testing::Test {
       "radiographs": [
         {"name": "a", "image": "a.tif", "white_region": [2, 2, 20, 20], "pattern": "free"},
         {"name": "b", "image": "b.tif", "white_region": [2, 2, 20, 20], "pattern": "translated",
-         "reference": "a", "distance_mm": 30.0}],
+         "reference": "a", "distance_mm": 30.0, "distance_uncertainty_mm": 0.01}],
       "pose_bounds": )" + s.bounds + R"(})";
     inputs_ = std::make_unique<MeasurementInputs>(loadMeasurementInputs(dir_ / "job.json"));
     model_ = std::make_unique<ForwardModel>(*inputs_);
@@ -223,6 +223,8 @@ TEST_F(Uncertainty, AnInfluenceMovesTheResultAsItsReSolveSays) {
     const double actual_m = darker.dimensions[k].value - nominal.dimensions[k].value;
     EXPECT_NEAR(actual_m, predicted_m, 0.15 * std::abs(predicted_m) + 2e-3) << name;
   }
+  // The translation's component is for the job's stated uncertainty.
+  EXPECT_EQ(component(nominal, "size_x", "translation b").standard_uncertainty, 0.01);
   // The thickness along the beam moves with the material, the sides across
   // it hardly: the budget must tell them apart.
   EXPECT_GT(component(nominal, "size_z", "material").contribution,

@@ -28,6 +28,9 @@
 //                      (docs/conventions.md)
 //     reference        translated and rotated: the radiograph it refers to
 //     distance_mm      translated: the exact distance moved (mm)
+//     distance_uncertainty_mm
+//                      translated, optional: its standard uncertainty (mm),
+//                      0 .. 100, default kDefaultTranslationUncertaintyMm
 //     pose             known: the pose (xray/machine.h keys)
 //   pose_bounds        search bounds of every free pose (world frame, of the part's
 //                      bounding-box centre; angles in degrees, R = Rz Ry Rx):
@@ -61,6 +64,10 @@ namespace xgauge {
 
 enum class Acquisition { kFree, kTranslated, kRotated, kKnown };
 
+// The standard uncertainty of a translated radiograph's distance when the
+// job states none: a linear stage's positioning, 5 um.
+inline constexpr double kDefaultTranslationUncertaintyMm = 0.005;
+
 struct RadiographSpec {
   std::string name;
   std::filesystem::path image, dark, flat;  // dark/flat empty when not given
@@ -69,6 +76,7 @@ struct RadiographSpec {
   Acquisition pattern = Acquisition::kFree;
   int reference = -1;        // index of the reference radiograph
   double distance_mm = 0.0;  // translated
+  double distance_uncertainty_mm = kDefaultTranslationUncertaintyMm;  // translated
   Pose known_pose;           // known
 };
 

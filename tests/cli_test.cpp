@@ -343,6 +343,31 @@ TEST_F(CalibrateWedge, NoRamp) {
   expectFailure(job("", "open.tif"), "no ramp found");
 }
 
+// A failed calibration leaves what its steps found, under names that say
+// failure, and nothing that could be taken for a calibration.
+TEST_F(CalibrateWedge, AFailureLeavesItsDiagnosticAndNoMaterial) {
+  writeTiff(out("open.tif"), Image(200, 300, 1.0f), TiffFormat::kFloat32);
+  expectFailure(job("", "open.tif"), "failed at its step \"find the ramp\"");
+  std::ifstream in(out("cal") + "/failed_calibration.json");
+  ASSERT_TRUE(in.good());
+  const nlohmann::json diagnostic = nlohmann::json::parse(in);
+  EXPECT_EQ(diagnostic.at("step"), "find the ramp");
+  EXPECT_TRUE(diagnostic.at("ramp").is_null());
+  EXPECT_NE(diagnostic.at("error").get<std::string>().find("no ramp found"), std::string::npos);
+  EXPECT_TRUE(fs::exists(out("cal") + "/failed_calibration.html"));
+  for (const char* file : {"material.json", "calibration.json", "report.html"})
+    EXPECT_FALSE(fs::exists(out("cal") + "/" + file)) << file;
+
+  // Failing later, at the fit, it also holds the ramp, the table and the fits tried.
+  fs::remove_all(out("cal"));
+  expectFailure(job(R"(, "ramp": {"rows": [10, 295]})"), "failed at its step \"fit the curve\"");
+  std::ifstream fit_in(out("cal") + "/failed_calibration.json");
+  const nlohmann::json late = nlohmann::json::parse(fit_in);
+  EXPECT_EQ(late.at("ramp").at("thin_end_row"), 10.0);
+  EXPECT_GT(late.at("table").at("path_mm").size(), 100u);
+  EXPECT_EQ(late.at("fit").at("fits").size(), 4u);
+}
+
 TEST_F(CalibrateWedge, RampRunsOffTheImage) {
   writeTiff(out("cut.tif"), ramp(-60, 260), TiffFormat::kFloat32);
   expectFailure(job("", "cut.tif"), "runs off the image");

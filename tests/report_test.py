@@ -3,13 +3,14 @@
 
 Simulates two small sessions with the virtual lab (tests/data/report_*.json),
 runs every command that writes a report.html (calibrate wedge, calibrate
-part, measure, study), opens each page in headless Chromium (tests/browser.py)
+part, measure, study) and a calibration that fails (failed_calibration.html), opens each page in headless Chromium (tests/browser.py)
 and checks that:
 - the page draws itself with no console error, no exception and no request
   beyond its own file;
 - the DOM shows every dimension's value, U and verdict (measurement), every
-  dimension's mean |error|, mean U and coverage (study) or every term of the
-  material (calibration) exactly as the JSON result beside it has them;
+  dimension's mean |error|, mean U and coverage (study), every term of the
+  material (calibration) or the failed step and its error (a calibration of
+  an open-beam shot) exactly as the JSON result beside it has them;
 - the residual pictures of the radiographs of one fit share one colour scale,
   the one the colour bar shows;
 - a full-page screenshot is neither blank nor mostly one colour.
@@ -72,6 +73,15 @@ def make_reports(xgauge, source, work):
         "scatter": {"weight": 0.139, "sigma_mm": 50.0}})
     run(xgauge, "calibrate", "wedge", "wedge_job.json", "-o", "wedge_cal", "--truth", "wedge/truth.json")
     reports["calibration (wedge)"] = ("wedge_cal/report.html", "wedge_cal/material.json")
+
+    # A wedge calibration of an open-beam shot fails; it leaves its diagnostic.
+    write_json("no_wedge_job.json", {
+        "machine": machine,
+        "radiograph": dict(image="cuboid/flat.tif", **frames),
+        "wedge": {"max_thickness_mm": 20.0, "ramp_length_mm": 90.0}})
+    run(xgauge, "calibrate", "wedge", "no_wedge_job.json", "-o", "no_wedge", expect=(1,))
+    check(not os.path.exists("no_wedge/material.json"), "a failed calibration left a material.json")
+    reports["failed calibration"] = ("no_wedge/failed_calibration.html", "no_wedge/failed_calibration.json")
 
     write_json("part_job.json", {
         "part": os.path.join(parts, "cuboid.json"), "machine": machine,
@@ -156,6 +166,14 @@ def check_study(browser, study):
     check(charts >= len(study["dimensions"]) + 1, f"study: {charts} charts for {len(study['dimensions'])} dimensions")
 
 
+def check_failure(browser, diagnostic):
+    shown = text_of(browser, "#failure")
+    check(shown is not None and diagnostic["step"] in shown and diagnostic["error"] in shown,
+          f"failed calibration: the banner shows {shown!r}, the diagnostic {diagnostic['step']!r}: {diagnostic['error']!r}")
+    picture = browser.evaluate("document.querySelectorAll('figure.measured image').length")
+    check(picture == 1, f"failed calibration: {picture} pictures of the radiograph")
+
+
 def check_calibration(browser, material):
     terms = material["terms"]
     rows = browser.evaluate("document.querySelectorAll('tr.term').length")
@@ -195,7 +213,10 @@ def main():
             kind = browser.evaluate("document.documentElement.dataset.report")
             with open(json_file) as f:
                 result = json.load(f)
-            (checks.get(kind) or check_calibration)(browser, result)
+            if result.get("failed"):
+                check_failure(browser, result)
+            else:
+                (checks.get(kind) or check_calibration)(browser, result)
             png = browser.screenshot(os.path.join(args.work, label.replace(" ", "_").replace("(", "").replace(")", "") + ".png"))
             stats = browser.colour_stats(png)
             print(f"{label}: {stats}")

@@ -1,6 +1,7 @@
 #include "calibrate_command.h"
 
 #include "xgauge/calibrate/part.h"
+#include "xgauge/core/error.h"
 #include "xgauge/core/output.h"
 #include "xgauge/calibrate/wedge.h"
 #include "xgauge/measure/truth.h"
@@ -64,7 +65,21 @@ void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
   if (cmd->got_subcommand("wedge")) {
     const WedgeCalibrationJob job = WedgeCalibrationJob::load(wedge.job);
     const TrueCurve truth = trueCurve(wedge.truth);
-    const WedgeCalibration result = calibrateFromWedge(job);
+    WedgeCalibration result;
+    try {
+      calibrateFromWedge(job, result);
+    } catch (const Error& e) {
+      // What the steps found goes into the folder under names that say
+      // failure, and only that: the user can see why (the ramp, the table,
+      // the fits tried), and no file can be taken for a calibration.
+      writeFailedWedgeCalibration(job, result, e.what(), wedge.output, wedge.report);
+      outputs.commit();
+      throw Error(fmt::format("the calibration failed at its step \"{}\": {} (what it found: {}/{})",
+                              result.step, e.message(), wedge.output,
+                              wedge.report ? "failed_calibration.html, failed_calibration.json"
+                                           : "failed_calibration.json"),
+                  e.where());
+    }
     std::printf("ramp: columns %d..%d, thin end at row %.2f, thick end at row %.2f (%s)\n",
                 result.ramp.column_begin, result.ramp.column_end - 1, result.ramp.thin_row,
                 result.ramp.thick_row, result.ramp.automatic_rows ? "found" : "given");

@@ -9,7 +9,8 @@
 namespace xgauge {
 
 CurveFit fitCurve(std::span<const double> path_mm, std::span<const double> transmission,
-                  int max_terms, double noise, bool free_amplitude, const std::string& what) {
+                  int max_terms, double noise, bool free_amplitude, const std::string& what,
+                  CurveFit* tried) {
   if (max_terms < 1 || max_terms > 4) fail("{}: max_terms must be 1 to 4, got {}", what, max_terms);
   CurveFit out;
   ExponentialFitOptions options;
@@ -21,6 +22,7 @@ CurveFit fitCurve(std::span<const double> path_mm, std::span<const double> trans
     try {
       fit.fitted = fitExponentialTerms(path_mm, transmission, m, options, &fit.report);
     } catch (const Error& e) {
+      if (tried) *tried = out;
       fail("{}: {}", what, e.message());
     }
     out.fits.push_back(std::move(fit));
@@ -46,6 +48,7 @@ CurveFit fitCurve(std::span<const double> path_mm, std::span<const double> trans
         noise, best_rms);
   }
   const ExponentialFitReport& r = out.best().report;
+  if (tried) *tried = out;
   if (!(r.max_relative_residual <= 0.05))
     fail(
         "{}: the exponential fit does not converge to the data: with {} terms its residual reaches "

@@ -56,10 +56,17 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
 }
 
 WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
+  WedgeCalibration out;
+  calibrateFromWedge(job, out);
+  return out;
+}
+
+void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   const auto start = std::chrono::steady_clock::now();
   const Machine& machine = job.machine;
   const std::string name = job.radiograph.image.string();
-  WedgeCalibration out;
+  out = WedgeCalibration{};
+  out.step = "normalize the radiograph";
 
   // 1. Normalize (the whole image: the ramp finder below looks for the wedge
   // itself, and says so clearly when there is none); remove the scatter.
@@ -74,16 +81,19 @@ WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
                                     spec.white_region, ClampPolicy::kNone, name)
                     .image;
   if (job.scatter.enabled()) image = job.scatter.remove(image, machine.pitch_u_mm, spec.white_region);
+  out.normalized = image;
 
   // 2. The ramp.
+  out.step = "find the ramp";
   out.ramp = detectRamp(image, job.ramp, name);
-  out.normalized = image;
+  out.ramp_found = true;
   const RampDetection& ramp = out.ramp;
   spdlog::debug("{}: ramp in columns {}..{}, thin end at row {:.2f}, thick end at row {:.2f}{}",
                 name, ramp.column_begin, ramp.column_end - 1, ramp.thin_row, ramp.thick_row,
                 ramp.automatic_rows ? " (found)" : " (given)");
 
   // 3. Geometry: both ends on the back face.
+  out.step = "the wedge's geometry";
   const double d = machine.source_detector_distance_mm;
   const double y_thin_det = (machine.cy_px - ramp.thin_row) * machine.pitch_v_mm;
   const double y_thick_det = (machine.cy_px - ramp.thick_row) * machine.pitch_v_mm;
@@ -107,6 +117,7 @@ WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
   out.x_max_mm = path(0.5 * (ramp.column_begin + ramp.column_end), ramp.thick_row);
 
   // 4. The table, thin end first.
+  out.step = "the intensity table";
   const bool down = ramp.thin_row < ramp.thick_row;
   const int first =
       static_cast<int>(std::ceil(down ? ramp.thin_row : ramp.thick_row)) + job.margin_rows;
@@ -134,7 +145,9 @@ WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
   }
 
   // 5-6. Fit, then eq. 3.7.
-  out.fit = fitCurve(out.path_mm, out.transmission, job.max_terms, ramp.row_noise, true, name);
+  out.step = "fit the curve";
+  out.fit = fitCurve(out.path_mm, out.transmission, job.max_terms, ramp.row_noise, true, name,
+                     &out.fit);
   out.material = shiftAndScale(out.fit.best().fitted, out.x_max_mm, &out.x0_mm);
   out.material = ExponentialSum(
       out.material.terms(),
@@ -144,7 +157,7 @@ WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
           job.radiograph.image.filename().string(), out.fit.best().report.terms_used,
           out.rows.size(), out.x0_mm, out.x_max_mm));
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return out;
+  out.step = "done";
 }
 
 }  // namespace xgauge

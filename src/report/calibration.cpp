@@ -67,10 +67,77 @@ void writeCalibrationOutputs(const std::filesystem::path& folder, const Exponent
   writeFileAtomically(folder / "material.json", material.toJson().dump(2) + "\n");
 }
 
+namespace {
+
+// The wedge radiograph with the ramp's rows (when found) and the white
+// region marked, for the calibration's page.
+nlohmann::json wedgePictures(const WedgeCalibrationJob& job, const WedgeCalibration& result) {
+  if (result.normalized.empty()) return nullptr;
+  const Image& image = result.normalized;
+  nlohmann::json marks = nlohmann::json::array();
+  if (result.ramp_found) {
+    const RampDetection& ramp = result.ramp;
+    const double lo = result.rows.empty() ? std::min(ramp.thin_row, ramp.thick_row)
+                                          : std::min(result.rows.front(), result.rows.back());
+    const double hi = result.rows.empty() ? std::max(ramp.thin_row, ramp.thick_row)
+                                          : std::max(result.rows.front(), result.rows.back()) + 1;
+    marks.push_back({{"label", result.rows.empty() ? "ramp found" : "ramp rows used"},
+                     {"box", {ramp.column_begin, lo, ramp.column_end - ramp.column_begin, hi - lo}}});
+  }
+  const PixelRect& white = job.radiograph.white_region;
+  marks.push_back(
+      {{"label", "white region"}, {"box", {white.x, white.y, white.width, white.height}}});
+  return {{"kind", "wedge"},
+          {"scatter_removed", job.scatter.enabled()},
+          {"radiographs",
+           nlohmann::json::array({{{"name", job.radiograph.image.filename().string()},
+                                   {"measured", greyPicture(image, image.rect(), {0.0, 1.05}, 800)},
+                                   {"marks", marks}}})}};
+}
+
+nlohmann::json rampJson(const WedgeCalibration& result) {
+  if (!result.ramp_found) return nullptr;
+  const RampDetection& ramp = result.ramp;
+  nlohmann::json out = {{"columns", {ramp.column_begin, ramp.column_end}},
+                        {"automatic_columns", ramp.automatic_columns},
+                        {"thin_end_row", ramp.thin_row},
+                        {"thick_end_row", ramp.thick_row},
+                        {"automatic_rows", ramp.automatic_rows},
+                        {"row_noise", ramp.row_noise}};
+  if (!result.rows.empty()) out["rows_used"] = {result.rows.front(), result.rows.back()};
+  return out;
+}
+
+}  // namespace
+
+void writeFailedWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& partial,
+                                 const std::string& error, const std::filesystem::path& folder,
+                                 bool html_report) {
+  createOutputFolder(folder);
+  const nlohmann::json diagnostic = {
+      {"failed", true},
+      {"kind", "wedge"},
+      {"step", partial.step},
+      {"error", error},
+      {"job", job.file.string()},
+      {"radiograph", job.radiograph.image.string()},
+      {"ramp", rampJson(partial)},
+      {"table",
+       {{"row", partial.rows}, {"path_mm", partial.path_mm}, {"transmission", partial.transmission}}},
+      {"fit", partial.fit.fits.empty() ? nlohmann::json(nullptr) : toJson(partial.fit)},
+      {"software", "xgauge " XGAUGE_VERSION_STRING}};
+  if (html_report)
+    writeReport(folder / "failed_calibration.html", ReportKind::kCalibration,
+                "xgauge calibration failed: " + job.file.filename().string(),
+                {{"failure", diagnostic},
+                 {"pictures", wedgePictures(job, partial)},
+                 {"generated", utcTimestamp()}});
+  writeFileAtomically(folder / "failed_calibration.json", diagnostic.dump(2) + "\n");
+}
+
 void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& result,
                            const TrueCurve& true_curve, const std::filesystem::path& folder,
                            bool html_report) {
-  const RampDetection& ramp = result.ramp;
   // The table on the final curve's path axis: eq. 3.7 maps x to x s + x0.
   const double s = (result.x_max_mm - result.x0_mm) / result.x_max_mm;
   std::vector<double> shifted;
@@ -79,14 +146,7 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
   nlohmann::json figures = {{"kind", "wedge"},
                             {"job", job.file.string()},
                             {"radiograph", job.radiograph.image.string()},
-                            {"ramp",
-                             {{"columns", {ramp.column_begin, ramp.column_end}},
-                              {"automatic_columns", ramp.automatic_columns},
-                              {"thin_end_row", ramp.thin_row},
-                              {"thick_end_row", ramp.thick_row},
-                              {"automatic_rows", ramp.automatic_rows},
-                              {"row_noise", ramp.row_noise},
-                              {"rows_used", {result.rows.front(), result.rows.back()}}}},
+                            {"ramp", rampJson(result)},
                             {"geometry",
                              {{"back_face_magnification", result.magnification},
                               {"back_face_above_detector_mm", result.back_face_z_mm},
@@ -102,24 +162,7 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
                               {"path_mm", shifted},
                               {"transmission", result.transmission}}},
                             {"seconds", result.seconds}};
-  // The radiograph with the ramp's rows and columns and the white region.
-  nlohmann::json pictures = nullptr;
-  if (html_report && !result.normalized.empty()) {
-    const Image& image = result.normalized;
-    const double lo = std::min(result.rows.front(), result.rows.back());
-    const double hi = std::max(result.rows.front(), result.rows.back());
-    const PixelRect& white = job.radiograph.white_region;
-    const nlohmann::json marks = nlohmann::json::array(
-        {{{"label", "ramp rows used"},
-          {"box", {ramp.column_begin, lo, ramp.column_end - ramp.column_begin, hi - lo + 1}}},
-         {{"label", "white region"}, {"box", {white.x, white.y, white.width, white.height}}}});
-    pictures = {
-        {"kind", "wedge"},
-        {"radiographs",
-         nlohmann::json::array({{{"name", job.radiograph.image.filename().string()},
-                                 {"measured", greyPicture(image, image.rect(), {0.0, 1.05}, 800)},
-                                 {"marks", marks}}})}};
-  }
+  const nlohmann::json pictures = html_report ? wedgePictures(job, result) : nlohmann::json(nullptr);
   CalibrationData data;
   data.path_mm = shifted;
   data.transmission = result.transmission;

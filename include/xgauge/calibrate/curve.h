@@ -36,9 +36,11 @@ struct CurveFit {
 // within 10 % of the best M's. Throws Error naming `what` if the chosen fit
 // does not converge to the data: a residual above 5 % of the intensity
 // somewhere, which an exponential sum through a real attenuation curve never
-// needs (wrong rows, wrong white region, or not a ramp).
+// needs (wrong rows, wrong white region, or not a ramp). With `tried`, the
+// fits made so far are left there when it throws (a failed calibration's
+// diagnostic).
 CurveFit fitCurve(std::span<const double> path_mm, std::span<const double> transmission,
-                  int max_terms, double noise, bool free_amplitude, const std::string& what);
+                  int max_terms, double noise, bool free_amplitude, const std::string& what, CurveFit* tried = nullptr);
 
 nlohmann::json toJson(const CurveFit& fit);
 

@@ -80,9 +80,16 @@ struct WedgeCalibration {
   ExponentialSum material{{{1.0, 0.0}}};
   double seconds = 0.0;
   Image normalized;  // the radiograph as the ramp was found in (scatter removed)
+  // The step under way or, after a success, "done": what a failure names.
+  std::string step;
+  bool ramp_found = false;  // `ramp` holds a detection
 };
 
 WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job);
+// The same into `out`, which holds what the steps found so far when it
+// throws (normalized image, ramp, table, fits tried): a failed
+// calibration's diagnostic (report/calibration.h).
+void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out);
 
 
 }  // namespace xgauge

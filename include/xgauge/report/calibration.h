@@ -43,6 +43,16 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
                            const TrueCurve& true_curve, const std::filesystem::path& folder,
                            bool html_report = true);
 
+// After a failed wedge calibration (`partial` as calibrateFromWedge left
+// it): failed_calibration.json, the step that failed, the error and what
+// the steps had found (the ramp, the table, the fits tried), and with
+// `html_report` failed_calibration.html, the same as a page with the
+// radiograph and the ramp marked, into `folder`. Never material.json or
+// calibration.json: nothing there can be mistaken for a result.
+void writeFailedWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& partial,
+                                 const std::string& error, const std::filesystem::path& folder,
+                                 bool html_report = true);
+
 // material.json, calibration.json, report.html (as writeCalibrationOutputs,
 // with the last pose fit's radiographs), and that pose fit's result.json
 // with its simulated and difference images (report/measurement.h) in

@@ -365,7 +365,55 @@
     return (x) => terms.reduce((sum, t) => sum + t.weight * Math.exp(-t.mu_per_mm * x), 0);
   }
 
+  // A calibration that failed: the step and the error first, then what the
+  // steps found (failed_calibration.json holds the same).
+  function failedCalibrationPage(data, root) {
+    const f = data.failure;
+    root.append(el('h1', {}, 'Calibration failed'));
+    root.append(el('p', { class: 'subtitle' }, f.job || ''));
+    root.append(el('div', { class: 'banner nonconforming', id: 'failure' }, `Failed at the step “${f.step}”`,
+      el('small', {}, f.error)));
+    root.append(meta([['Job', f.job], ['Radiograph', f.radiograph], ['Software', f.software], ['Written', data.generated]]));
+    const ramp = f.ramp;
+    root.append(section('What the steps found',
+      el('p', {}, ramp
+        ? `A ramp in columns ${ramp.columns.join(' … ')} (${ramp.automatic_columns ? 'found' : 'given'}), thin end at row ${fixed(ramp.thin_end_row, 2)}, thick end at row ${fixed(ramp.thick_end_row, 2)} (${ramp.automatic_rows ? 'found' : 'given'}).`
+        : 'No ramp.'),
+      el('p', {}, `${f.table.path_mm.length} rows in the intensity table; ${f.fit ? f.fit.fits.length : 0} curve fits tried.`)));
+    if (f.table.path_mm.length > 1) {
+      const box = el('div', {});
+      root.append(box);
+      chart(box, 'The intensity table (path as fitted)', f.table.path_mm, [
+        { label: 'rows of the ramp', stroke: '#1f77b4', points: true, size: 4, values: f.table.transmission }],
+      { xLabel: 'path length x (mm)', yLabel: 'I(x)', legend: false });
+    }
+    if (f.fit)
+      root.append(table(['Terms asked', 'Terms used', 'rms', 'max |r|', 'max |r|/I'], f.fit.fits.map((t) => el('tr', {},
+        el('td', { class: 'num' }, t.terms_asked), el('td', { class: 'num' }, t.terms_used),
+        el('td', { class: 'num' }, general(t.rms_residual)), el('td', { class: 'num' }, general(t.max_abs_residual)),
+        el('td', { class: 'num' }, general(t.max_relative_residual))))));
+    wedgePicture(root, data.pictures, ramp);
+  }
+
+  function wedgePicture(root, pictures, ramp) {
+    if (!pictures || pictures.kind !== 'wedge') return;
+    const r = pictures.radiographs[0];
+    const colours = ['#00d0ff', '#ffd400'];
+    const legend = r.marks.map((m, k) => `${m.label} (${k === r.marks.length - 1 ? 'yellow' : 'cyan'})`).join(', ');
+    root.append(section('The radiograph', el('div', { class: 'pictures single' },
+      picture(r.measured, 'measured', `${r.name}, normalized${pictures.scatter_removed ? ', scatter removed' : ''}: ${legend}`, (svgRoot) => {
+        const g = svg('g', { class: 'marks' });
+        r.marks.forEach((m, k) => g.append(svg('rect', { x: m.box[0], y: m.box[1], width: m.box[2], height: m.box[3],
+          stroke: colours[k === r.marks.length - 1 ? 1 : 0] })));
+        svgRoot.append(g);
+      })),
+    ramp ? meta([['Ramp columns', (ramp.columns || []).join(' … ') + (ramp.automatic_columns ? ' (found)' : ' (given)')],
+      ['Thin end row', fixed(ramp.thin_end_row, 2)], ['Thick end row', fixed(ramp.thick_end_row, 2)],
+      ['Row noise', general(ramp.row_noise)]]) : null));
+  }
+
   function calibrationPage(data, root) {
+    if (data.failure) return failedCalibrationPage(data, root);
     const cal = data.calibration;
     const kind = cal.kind === 'wedge' ? 'wedge' : 'known part';
     root.append(el('h1', {}, `Material calibration from a ${kind}`));
@@ -425,19 +473,7 @@
 
     const pictures = data.pictures;
     if (pictures && pictures.kind === 'wedge') {
-      const r = pictures.radiographs[0];
-      const ramp = cal.ramp || {};
-      root.append(section('The radiograph', el('div', { class: 'pictures single' },
-        picture(r.measured, 'measured', `${r.name}, normalized, scatter removed: the ramp's rows used (cyan) and the white region (yellow)`,
-          (svgRoot) => {
-            const colours = ['#00d0ff', '#ffd400'];
-            const g = svg('g', { class: 'marks' });
-            r.marks.forEach((m, k) => g.append(svg('rect', { x: m.box[0], y: m.box[1], width: m.box[2], height: m.box[3], stroke: colours[k % 2] })));
-            svgRoot.append(g);
-          })),
-      meta([['Ramp columns', (ramp.columns || []).join(' … ') + (ramp.automatic_columns ? ' (found)' : ' (given)')],
-        ['Thin end row', fixed(ramp.thin_end_row, 2)], ['Thick end row', fixed(ramp.thick_end_row, 2)],
-        ['Row noise', general(ramp.row_noise)]])));
+      wedgePicture(root, pictures, cal.ramp);
     } else if (pictures && pictures.kind === 'part') {
       root.append(section('The last pose fit', radiographSections(pictures, [], [])));
       const rounds = cal.rounds || [];
@@ -577,7 +613,7 @@
     const pages = { measurement: measurementPage, calibration: calibrationPage, study: studyPage };
     if (!pages[kind]) throw new Error('unknown report kind ' + kind);
     pages[kind](data, root);
-    root.append(el('footer', {}, `Written by ${(data.result || data.calibration || {}).software || 'xgauge'} on ${data.generated || ''}. ` +
+    root.append(el('footer', {}, `Written by ${(data.result || data.calibration || data.failure || {}).software || 'xgauge'} on ${data.generated || ''}. ` +
       'The JSON files beside this page hold every figure; charts by uPlot (MIT).'));
   } catch (e) {
     window.xgaugeErrors.push(String(e && e.stack ? e.stack : e));

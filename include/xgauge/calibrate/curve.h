@@ -40,7 +40,8 @@ struct CurveFit {
 // fits made so far are left there when it throws (a failed calibration's
 // diagnostic).
 CurveFit fitCurve(std::span<const double> path_mm, std::span<const double> transmission,
-                  int max_terms, double noise, bool free_amplitude, const std::string& what, CurveFit* tried = nullptr);
+                  int max_terms, double noise, bool free_amplitude, const std::string& what,
+                  CurveFit* tried = nullptr);
 
 nlohmann::json toJson(const CurveFit& fit);
 

@@ -77,7 +77,7 @@ struct RadiographSpec {
   int reference = -1;        // index of the reference radiograph
   double distance_mm = 0.0;  // translated
   double distance_uncertainty_mm = kDefaultTranslationUncertaintyMm;  // translated
-  Pose known_pose;           // known
+  Pose known_pose;                                                    // known
 };
 
 struct MeasurementJob {

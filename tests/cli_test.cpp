@@ -422,6 +422,16 @@ class CalibratePart : public Cli {
 
 TEST_F(CalibratePart, InitialRegionInTheOpenBeam) {
   expectFailure(job("[2, 2, 10, 10]"), "eq. 3.8 needs one in (0, 1)");
+  // The failure names its step and leaves its diagnostic, and only that.
+  expectFailure(job("[2, 2, 10, 10]"), "failed at its step \"the initial material");
+  std::ifstream in(out("cal") + "/failed_calibration.json");
+  ASSERT_TRUE(in.good());
+  const nlohmann::json diagnostic = nlohmann::json::parse(in);
+  EXPECT_EQ(diagnostic.at("kind"), "part");
+  EXPECT_EQ(diagnostic.at("step"), "the initial material (thesis eq. 3.8)");
+  EXPECT_TRUE(diagnostic.at("rounds").empty());
+  EXPECT_TRUE(fs::exists(out("cal") + "/failed_calibration.html"));
+  EXPECT_FALSE(fs::exists(out("cal") + "/calibration.json"));
 }
 
 TEST_F(CalibratePart, InitialRegionOutsideTheImage) {

@@ -1,9 +1,9 @@
 #include "calibrate_command.h"
 
 #include "xgauge/calibrate/part.h"
+#include "xgauge/calibrate/wedge.h"
 #include "xgauge/core/error.h"
 #include "xgauge/core/output.h"
-#include "xgauge/calibrate/wedge.h"
 #include "xgauge/measure/truth.h"
 #include "xgauge/report/calibration.h"
 
@@ -37,8 +37,18 @@ void printMaterial(const ExponentialSum& material, const CalibrateArguments& arg
   for (size_t k = 0; k < material.terms().size(); ++k)
     text += fmt::format("{} {:.5f} exp(-{:.5f} x)", k ? " +" : "", material.terms()[k].weight,
                         material.terms()[k].mu_per_mm);
-  std::printf("%s\nwrote %s/material.json, calibration.json%s\n", text.c_str(),
-              args.output.c_str(), args.report ? ", report.html" : "");
+  std::printf("%s\nwrote %s/material.json, calibration.json%s\n", text.c_str(), args.output.c_str(),
+              args.report ? ", report.html" : "");
+}
+
+// The error of a calibration that failed at `step`, naming the diagnostic it
+// left.
+Error failedAt(const std::string& step, const Error& e, const CalibrateArguments& args) {
+  return Error(fmt::format("the calibration failed at its step \"{}\": {} (what it found: {}/{})",
+                           step, e.message(), args.output,
+                           args.report ? "failed_calibration.html, failed_calibration.json"
+                                       : "failed_calibration.json"),
+               e.where());
 }
 
 }  // namespace
@@ -74,11 +84,7 @@ void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
       // the fits tried), and no file can be taken for a calibration.
       writeFailedWedgeCalibration(job, result, e.what(), wedge.output, wedge.report);
       outputs.commit();
-      throw Error(fmt::format("the calibration failed at its step \"{}\": {} (what it found: {}/{})",
-                              result.step, e.message(), wedge.output,
-                              wedge.report ? "failed_calibration.html, failed_calibration.json"
-                                           : "failed_calibration.json"),
-                  e.where());
+      throw failedAt(result.step, e, wedge);
     }
     std::printf("ramp: columns %d..%d, thin end at row %.2f, thick end at row %.2f (%s)\n",
                 result.ramp.column_begin, result.ramp.column_end - 1, result.ramp.thin_row,
@@ -94,7 +100,14 @@ void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
   } else {
     const PartCalibrationJob job = PartCalibrationJob::load(part.job);
     const TrueCurve truth = trueCurve(part.truth);
-    const PartCalibration result = calibrateFromPart(job);
+    PartCalibration result;
+    try {
+      calibrateFromPart(job, result);
+    } catch (const Error& e) {
+      writeFailedPartCalibration(job, result, e.what(), part.output, part.report);
+      outputs.commit();
+      throw failedAt(result.step, e, part);
+    }
     writePartCalibration(job, result, truth, part.output, part.report);
     printMaterial(result.material, part);
   }

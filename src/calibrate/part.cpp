@@ -127,8 +127,15 @@ PartCalibrationJob PartCalibrationJob::load(const std::filesystem::path& path) {
 }
 
 PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
-  const auto start = std::chrono::steady_clock::now();
   PartCalibration out;
+  calibrateFromPart(job, out);
+  return out;
+}
+
+void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out) {
+  const auto start = std::chrono::steady_clock::now();
+  out = PartCalibration{};
+  out.step = "the initial material (thesis eq. 3.8)";
 
   // 1. Eq. 3.8 from the uniform region.
   const RadiographSpec& spec =
@@ -152,6 +159,7 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
                out.initial_intensity, job.initial_path_mm, out.initial_mu_per_mm);
 
   // 2. Poses with that material.
+  out.step = "the poses with the initial material";
   ForwardModel model(*job.inputs, initial);
   std::vector<double> theta = model.start();
   MeasureOptions provisional;
@@ -164,9 +172,12 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
   // continued until the material settles.
   ExponentialSum material = initial;
   for (int round = 0; round < job.rounds; ++round) {
+    out.step = fmt::format("round {}: the table of registered pixels", round + 1);
     const Table table = tabulate(model, theta);
+    out.path_mm = table.path_mm, out.transmission = table.transmission;
+    out.step = fmt::format("round {}: fit the curve", round + 1);
     const CurveFit fit = fitCurve(table.path_mm, table.transmission, job.terms, table.noise, false,
-                                  "calibration round " + std::to_string(round + 1));
+                                  "calibration round " + std::to_string(round + 1), &out.fit);
     const TermsFit& asked = fit.fits.back();  // the job's number of terms
     PartCalibrationRound r;
     r.report = asked.report;
@@ -181,6 +192,7 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
     options.search_poses = false;
     options.joint_search = false;
     options.assess = false;
+    out.step = fmt::format("round {}: the joint fit of poses and material", round + 1);
     out.measurement = measure(model, theta, options);
     theta = out.measurement.theta;
     r.material = model.materialOf(theta);
@@ -202,11 +214,12 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
   // final poses. The joint fit's own material follows the image loss, which
   // barely sees short paths (they occur only next to edges); the binned table
   // gives every path length the same weight, as a wedge would.
+  out.step = "the final table of registered pixels";
   const Table table = tabulate(model, theta);
+  out.path_mm = table.path_mm, out.transmission = table.transmission;
+  out.step = "fit the final curve";
   out.fit = fitCurve(table.path_mm, table.transmission, job.terms, table.noise, false,
-                     "final calibration");
-  out.path_mm = table.path_mm;
-  out.transmission = table.transmission;
+                     "final calibration", &out.fit);
   out.max_path_mm = table.path_mm.back();
   out.material = ExponentialSum(
       out.fit.best().fitted,
@@ -215,7 +228,7 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
                   job.measurement().file.filename().string(), out.fit.best().report.terms_used,
                   table.pixels, table.path_mm.size(), out.max_path_mm));
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
-  return out;
+  out.step = "done";
 }
 
 }  // namespace xgauge

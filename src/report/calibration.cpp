@@ -81,8 +81,9 @@ nlohmann::json wedgePictures(const WedgeCalibrationJob& job, const WedgeCalibrat
                                           : std::min(result.rows.front(), result.rows.back());
     const double hi = result.rows.empty() ? std::max(ramp.thin_row, ramp.thick_row)
                                           : std::max(result.rows.front(), result.rows.back()) + 1;
-    marks.push_back({{"label", result.rows.empty() ? "ramp found" : "ramp rows used"},
-                     {"box", {ramp.column_begin, lo, ramp.column_end - ramp.column_begin, hi - lo}}});
+    marks.push_back(
+        {{"label", result.rows.empty() ? "ramp found" : "ramp rows used"},
+         {"box", {ramp.column_begin, lo, ramp.column_end - ramp.column_begin, hi - lo}}});
   }
   const PixelRect& white = job.radiograph.white_region;
   marks.push_back(
@@ -110,29 +111,80 @@ nlohmann::json rampJson(const WedgeCalibration& result) {
 
 }  // namespace
 
+namespace {
+
+// The rounds and poses of a part calibration, as calibration.json has them.
+nlohmann::json roundsJson(const PartCalibration& result) {
+  nlohmann::json rounds = nlohmann::json::array();
+  for (const PartCalibrationRound& r : result.rounds)
+    rounds.push_back({{"material", r.material.toJson()},
+                      {"rms_residual", r.report.rms_residual},
+                      {"max_abs_residual", r.report.max_abs_residual},
+                      {"change", r.change},
+                      {"pose_loss", r.pose_loss},
+                      {"pixels", r.pixels}});
+  return rounds;
+}
+nlohmann::json posesJson(const PartCalibration& result) {
+  nlohmann::json poses = nlohmann::json::array();
+  for (const MeasuredRadiograph& r : result.measurement.radiographs)
+    poses.push_back({{"name", r.name}, {"pose", poseToJson(r.pose)}, {"loss", r.loss}});
+  return poses;
+}
+
+// failed_calibration.json and, with html_report, failed_calibration.html.
+void writeFailure(const std::filesystem::path& folder, nlohmann::json diagnostic,
+                  const CurveFit& fit, const nlohmann::json& pictures, bool html_report) {
+  createOutputFolder(folder);
+  diagnostic["failed"] = true;
+  diagnostic["fit"] = fit.fits.empty() ? nlohmann::json(nullptr) : toJson(fit);
+  diagnostic["software"] = "xgauge " XGAUGE_VERSION_STRING;
+  if (html_report)
+    writeReport(
+        folder / "failed_calibration.html", ReportKind::kCalibration,
+        "xgauge calibration failed: " +
+            std::filesystem::path(diagnostic.at("job").get<std::string>()).filename().string(),
+        {{"failure", diagnostic}, {"pictures", pictures}, {"generated", utcTimestamp()}});
+  writeFileAtomically(folder / "failed_calibration.json", diagnostic.dump(2) + "\n");
+}
+
+}  // namespace
+
 void writeFailedWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& partial,
                                  const std::string& error, const std::filesystem::path& folder,
                                  bool html_report) {
-  createOutputFolder(folder);
-  const nlohmann::json diagnostic = {
-      {"failed", true},
-      {"kind", "wedge"},
-      {"step", partial.step},
-      {"error", error},
-      {"job", job.file.string()},
-      {"radiograph", job.radiograph.image.string()},
-      {"ramp", rampJson(partial)},
-      {"table",
-       {{"row", partial.rows}, {"path_mm", partial.path_mm}, {"transmission", partial.transmission}}},
-      {"fit", partial.fit.fits.empty() ? nlohmann::json(nullptr) : toJson(partial.fit)},
-      {"software", "xgauge " XGAUGE_VERSION_STRING}};
-  if (html_report)
-    writeReport(folder / "failed_calibration.html", ReportKind::kCalibration,
-                "xgauge calibration failed: " + job.file.filename().string(),
-                {{"failure", diagnostic},
-                 {"pictures", wedgePictures(job, partial)},
-                 {"generated", utcTimestamp()}});
-  writeFileAtomically(folder / "failed_calibration.json", diagnostic.dump(2) + "\n");
+  writeFailure(folder,
+               {{"kind", "wedge"},
+                {"step", partial.step},
+                {"error", error},
+                {"job", job.file.string()},
+                {"radiograph", job.radiograph.image.string()},
+                {"ramp", rampJson(partial)},
+                {"table",
+                 {{"row", partial.rows},
+                  {"path_mm", partial.path_mm},
+                  {"transmission", partial.transmission}}}},
+               partial.fit, html_report ? wedgePictures(job, partial) : nlohmann::json(nullptr),
+               html_report);
+}
+
+void writeFailedPartCalibration(const PartCalibrationJob& job, const PartCalibration& partial,
+                                const std::string& error, const std::filesystem::path& folder,
+                                bool html_report) {
+  const nlohmann::json initial = partial.initial_mu_per_mm > 0.0
+                                     ? nlohmann::json{{"intensity", partial.initial_intensity},
+                                                      {"mu_per_mm", partial.initial_mu_per_mm}}
+                                     : nlohmann::json(nullptr);
+  writeFailure(folder,
+               {{"kind", "part"},
+                {"step", partial.step},
+                {"error", error},
+                {"job", job.measurement().file.string()},
+                {"initial", initial},
+                {"rounds", roundsJson(partial)},
+                {"poses", posesJson(partial)},
+                {"table", {{"path_mm", partial.path_mm}, {"transmission", partial.transmission}}}},
+               partial.fit, nullptr, html_report);
 }
 
 void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& result,
@@ -162,7 +214,8 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
                               {"path_mm", shifted},
                               {"transmission", result.transmission}}},
                             {"seconds", result.seconds}};
-  const nlohmann::json pictures = html_report ? wedgePictures(job, result) : nlohmann::json(nullptr);
+  const nlohmann::json pictures =
+      html_report ? wedgePictures(job, result) : nlohmann::json(nullptr);
   CalibrationData data;
   data.path_mm = shifted;
   data.transmission = result.transmission;
@@ -174,17 +227,8 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
 void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& result,
                           const TrueCurve& true_curve, const std::filesystem::path& folder,
                           bool html_report) {
-  nlohmann::json rounds = nlohmann::json::array();
-  for (const PartCalibrationRound& r : result.rounds)
-    rounds.push_back({{"material", r.material.toJson()},
-                      {"rms_residual", r.report.rms_residual},
-                      {"max_abs_residual", r.report.max_abs_residual},
-                      {"change", r.change},
-                      {"pose_loss", r.pose_loss},
-                      {"pixels", r.pixels}});
-  nlohmann::json poses = nlohmann::json::array();
-  for (const MeasuredRadiograph& r : result.measurement.radiographs)
-    poses.push_back({{"name", r.name}, {"pose", poseToJson(r.pose)}, {"loss", r.loss}});
+  const nlohmann::json rounds = roundsJson(result);
+  const nlohmann::json poses = posesJson(result);
   const nlohmann::json figures = {
       {"kind", "part"},
       {"job", job.measurement().file.string()},

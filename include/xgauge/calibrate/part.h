@@ -83,9 +83,14 @@ struct PartCalibration {
   ExponentialSum material{{{1.0, 0.0}}};
   MeasurementResult measurement;  // the last pose fit
   double seconds = 0.0;
+  // The step under way or, after a success, "done": what a failure names.
+  std::string step;
 };
 
 PartCalibration calibrateFromPart(const PartCalibrationJob& job);
-
+// The same into `out`, which holds what the steps found so far when it
+// throws (eq. 3.8, the rounds, the last table and fits tried): a failed
+// calibration's diagnostic (report/calibration.h).
+void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out);
 
 }  // namespace xgauge

@@ -53,6 +53,13 @@ void writeFailedWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCali
                                  const std::string& error, const std::filesystem::path& folder,
                                  bool html_report = true);
 
+// The same after a failed part calibration: the step, the error, eq. 3.8's
+// initial material, the rounds and poses so far, the last table and the
+// fits tried.
+void writeFailedPartCalibration(const PartCalibrationJob& job, const PartCalibration& partial,
+                                const std::string& error, const std::filesystem::path& folder,
+                                bool html_report = true);
+
 // material.json, calibration.json, report.html (as writeCalibrationOutputs,
 // with the last pose fit's radiographs), and that pose fit's result.json
 // with its simulated and difference images (report/measurement.h) in

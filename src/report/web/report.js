@@ -376,9 +376,12 @@
     root.append(meta([['Job', f.job], ['Radiograph', f.radiograph], ['Software', f.software], ['Written', data.generated]]));
     const ramp = f.ramp;
     root.append(section('What the steps found',
-      el('p', {}, ramp
+      f.kind === 'wedge' ? el('p', {}, ramp
         ? `A ramp in columns ${ramp.columns.join(' … ')} (${ramp.automatic_columns ? 'found' : 'given'}), thin end at row ${fixed(ramp.thin_end_row, 2)}, thick end at row ${fixed(ramp.thick_end_row, 2)} (${ramp.automatic_rows ? 'found' : 'given'}).`
-        : 'No ramp.'),
+        : 'No ramp.') : null,
+      f.kind === 'part' ? el('p', {}, (f.initial
+        ? `The initial material (thesis eq. 3.8): I1 = ${fixed(f.initial.intensity, 4)}, μ1 = ${fixed(f.initial.mu_per_mm, 4)} /mm. `
+        : 'No initial material. ') + `${(f.rounds || []).length} round(s) done; ${(f.poses || []).length} pose(s) fitted.`) : null,
       el('p', {}, `${f.table.path_mm.length} rows in the intensity table; ${f.fit ? f.fit.fits.length : 0} curve fits tried.`)));
     if (f.table.path_mm.length > 1) {
       const box = el('div', {});

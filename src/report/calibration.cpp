@@ -254,14 +254,16 @@ void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& 
   MeasurementResult fitted = result.measurement;
   fitted.theta.resize(static_cast<size_t>(model.size()));  // without the free material's parameters
   nlohmann::json pictures = nullptr;
-  if (html_report) pictures = radiographPictures(model, fitted.theta), pictures["kind"] = "part";
+  std::vector<Image> simulated = simulateRadiographs(model, fitted.theta);
+  if (html_report)
+    pictures = radiographPictures(model, fitted.theta, simulated), pictures["kind"] = "part";
   CalibrationData data;
   data.path_mm = result.path_mm;
   data.transmission = result.transmission;
   data.x_max_mm = result.max_path_mm;
   writeCalibrationOutputs(folder, result.material, figures, data, true_curve, pictures,
                           html_report);
-  writeMeasurementOutputs(model, fitted, folder / "poses", false);
+  writeMeasurementOutputs(model, fitted, folder / "poses", false, nullptr, std::move(simulated));
 }
 
 }  // namespace xgauge

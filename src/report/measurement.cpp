@@ -154,7 +154,15 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
           {"inputs_sha256", inputs}};
 }
 
-nlohmann::json radiographPictures(ForwardModel& model, std::span<const double> theta) {
+std::vector<Image> simulateRadiographs(ForwardModel& model, std::span<const double> theta) {
+  std::vector<Image> out;
+  for (int r = 0; r < model.radiographCount(); ++r)
+    out.push_back(model.simulate(theta, r, 0, 2, model.machine().detectorRect()));
+  return out;
+}
+
+nlohmann::json radiographPictures(ForwardModel& model, std::span<const double> theta,
+                                  const std::vector<Image>& simulated_full) {
   // The three pictures of each radiograph cover its roi with a margin of a
   // tenth of its size, so the outline is seen against the open beam.
   std::vector<Image> measured, simulated, residuals;
@@ -171,7 +179,7 @@ nlohmann::json radiographPictures(ForwardModel& model, std::span<const double> t
     crops.push_back(crop);
     rois.push_back(roi);
     measured.push_back(rad.levels.front().crop(crop));
-    simulated.push_back(model.simulate(theta, r, 0, 2, crop));
+    simulated.push_back(simulated_full[static_cast<size_t>(r)].crop(crop));
     Image residual(crop.width, crop.height, 0.0f);
     for (int y = 0; y < crop.height; ++y)
       for (int x = 0; x < crop.width; ++x)
@@ -228,14 +236,15 @@ nlohmann::json measurementContext(const ForwardModel& model) {
 
 void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,
                              const std::filesystem::path& folder, bool html_report,
-                             const nlohmann::json& truth) {
+                             const nlohmann::json& truth, std::vector<Image> simulated_full) {
   createOutputFolder(folder);
+  if (simulated_full.empty()) simulated_full = simulateRadiographs(model, result.theta);
 
   // Final simulated radiographs and the differences over each roi.
   for (int r = 0; r < model.radiographCount(); ++r) {
     const PreparedRadiograph& rad = model.radiograph(r);
     const std::string& name = model.spec(r).name;
-    const Image simulated = model.simulate(result.theta, r, 0, 2, model.machine().detectorRect());
+    const Image& simulated = simulated_full[static_cast<size_t>(r)];
     writeTiff(folder / ("simulated_" + name + ".tif"), simulated, TiffFormat::kFloat32);
     const PixelRect roi = rad.rois.front();
     const Image difference = differenceImage(simulated.crop(roi), rad.levels.front(), roi);
@@ -245,11 +254,12 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
 
   const nlohmann::json json = measurementJson(model, result);
   if (html_report) {
-    const nlohmann::json data = {{"result", json},
-                                 {"context", measurementContext(model)},
-                                 {"generated", utcTimestamp()},
-                                 {"truth", truth},
-                                 {"pictures", radiographPictures(model, result.theta)}};
+    const nlohmann::json data = {
+        {"result", json},
+        {"context", measurementContext(model)},
+        {"generated", utcTimestamp()},
+        {"truth", truth},
+        {"pictures", radiographPictures(model, result.theta, simulated_full)}};
     writeReport(folder / "report.html", ReportKind::kMeasurement,
                 "xgauge measurement: " + model.job().file.filename().string(), data);
   }

@@ -10,6 +10,7 @@
 
 #include <filesystem>
 #include <span>
+#include <vector>
 
 namespace xgauge {
 
@@ -18,18 +19,26 @@ namespace xgauge {
 // diverging-colour PNG) and, with `html_report`, report.html (report/html.h)
 // into `folder`, each file atomically, from the model that measured. `truth`
 // (a virtual lab's true dimensions, name -> value; null when unknown) is
-// shown beside the measured values in the page.
+// shown beside the measured values in the page. `simulated_full`: the
+// final simulated radiographs when the caller has them
+// (simulateRadiographs), else they are rendered here.
 void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,
                              const std::filesystem::path& folder, bool html_report = true,
-                             const nlohmann::json& truth = nullptr);
+                             const nlohmann::json& truth = nullptr,
+                             std::vector<Image> simulated_full = {});
+
+// The final simulated radiograph of each radiograph, whole detector, full
+// size, 2 x 2 samples per pixel: what the outputs and the page show.
+std::vector<Image> simulateRadiographs(ForwardModel& model, std::span<const double> theta);
 
 // The pictures of a measurement's page, {"residual_scale", "colour_map",
 // "radiographs"}; per radiograph the normalized radiograph, the simulated
 // one and the residual (simulated - measured) around its roi, the residual
 // under one symmetric colour scale shared by all radiographs (residualScale
 // over every roi), and the fitted part's outline (xray/contour.h) in
-// detector pixels.
-nlohmann::json radiographPictures(ForwardModel& model, std::span<const double> theta);
+// detector pixels. `simulated_full`: simulateRadiographs(model, theta).
+nlohmann::json radiographPictures(ForwardModel& model, std::span<const double> theta,
+                                  const std::vector<Image>& simulated_full);
 
 // The part model's dimensions (nominal and range), the machine and the
 // material the measurement used, for the page's header.

@@ -27,7 +27,7 @@ void assignPieces(const Csg& csg, SceneSetup& scene) {
 
 void accumulateCsgBand(const SceneSetup& scene, std::span<const uint32_t> bin, const Csg& csg,
                        int row_begin, int row_end, int col_begin, int width, double* sum,
-                       CsgScratch& scratch) {
+                       CsgScratch& scratch, PathTerms* terms) {
   const int rows = row_end - row_begin;
   const size_t samples = static_cast<size_t>(rows) * static_cast<size_t>(width);
   const auto index = [&](int row, int column) {
@@ -49,6 +49,9 @@ void accumulateCsgBand(const SceneSetup& scene, std::span<const uint32_t> bin, c
     // Two plain loops per span (the compiler vectorizes both); pieces that
     // are nothing by themselves (holes) only mark their samples.
     forEachSpan(t, row_begin, row_end, [&](int line, int k0, int k1) {
+      if (terms && alone)
+        for (int k = k0; k <= k1; ++k)
+          t.by_rows ? terms->add(line, k, i, sigma) : terms->add(k, line, i, sigma);
       if (t.by_rows) {
         const size_t first = index(line, k0);
         const int n = k1 - k0 + 1;
@@ -125,7 +128,7 @@ void accumulateCsgBand(const SceneSetup& scene, std::span<const uint32_t> bin, c
     const uint32_t code = static_cast<uint32_t>(t.piece) << 1 | (t.sigma > 0 ? 1u : 0u);
     for_each_mixed(t, [&](int row, int column) {
       const size_t s = index(row, column);
-      scratch.crossings[start[s] + count[s]++] = {inverseMagnification(t, row, column), code};
+      scratch.crossings[start[s] + count[s]++] = {inverseMagnification(t, row, column), code, i};
     });
   }
 
@@ -145,6 +148,9 @@ void accumulateCsgBand(const SceneSetup& scene, std::span<const uint32_t> bin, c
       }
       *hole = value;
     }
+    const int row = row_begin + static_cast<int>(s / static_cast<size_t>(width));
+    const int column = col_begin + static_cast<int>(s % static_cast<size_t>(width));
+    if (terms) terms->reset(row, column);
     uint64_t inside = 0;
     bool in_part = false;
     double path = 0.0;
@@ -156,6 +162,7 @@ void accumulateCsgBand(const SceneSetup& scene, std::span<const uint32_t> bin, c
       const bool now = csg.contains(inside);
       if (now != in_part) {
         path += now ? -c->depth : c->depth;
+        if (terms) terms->add(row, column, c->triangle, now ? -1.0 : 1.0);
         in_part = now;
       }
     }

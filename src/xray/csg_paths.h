@@ -39,8 +39,9 @@ namespace xgauge::raster {
 // Per-thread buffers, reused from band to band.
 struct CsgScratch {
   struct Crossing {
-    double depth;   // 1 / m
-    uint32_t code;  // piece << 1 | 1 for an exit
+    double depth;       // 1 / m
+    uint32_t code;      // piece << 1 | 1 for an exit
+    uint32_t triangle;  // the mesh triangle crossed
   };
   std::vector<uint8_t> owner;  // per sample: the only piece seen, or kNone / kMixed
   std::vector<uint32_t> count, start;
@@ -52,9 +53,20 @@ struct CsgScratch {
 // [col_begin, col_begin + width): writes each sample's path through the part
 // divided by |P - S| into `sum` (row-major, zeroed by the caller), from the
 // triangles `bin` of `scene` (mesh order) whose `piece` fields are set.
+//
+// With `terms`, also tells which triangle's depth enters each sample's path
+// with which sign (the derivative render, derivatives.cpp): add() for every
+// term of the sum, and for a sample whose crossings are walked, reset() and
+// then add() for each crossing that bounds the part's path.
+class PathTerms {
+ public:
+  virtual ~PathTerms() = default;
+  virtual void add(int row, int column, uint32_t triangle, double sign) = 0;
+  virtual void reset(int row, int column) = 0;
+};
 void accumulateCsgBand(const SceneSetup& scene, std::span<const uint32_t> bin, const Csg& csg,
                        int row_begin, int row_end, int col_begin, int width, double* sum,
-                       CsgScratch& scratch);
+                       CsgScratch& scratch, PathTerms* terms = nullptr);
 
 // Sets each triangle's `piece` from the CSG's triangle ranges.
 void assignPieces(const Csg& csg, SceneSetup& scene);

@@ -1,7 +1,6 @@
 #include "xgauge/xray/renderer.h"
 
-#include "csg_paths.h"
-#include "rasterizer.h"
+#include "footprint.h"
 
 #include <algorithm>
 #include <limits>
@@ -11,85 +10,17 @@
 
 namespace xgauge {
 
+using raster::Band;
+using raster::Footprint;
+using raster::SampleDistances;
 using raster::SceneSetup;
 using raster::TriangleSetup;
+using raster::layoutFootprint;
+using raster::resolveRegion;
+using raster::sampleDistances;
+using raster::setupMesh;
 
 namespace {
-
-PixelRect resolveRegion(const Machine& machine, const RenderOptions& options) {
-  machine.validate();
-  if (options.samples_per_axis < 1 || options.samples_per_axis > 16)
-    fail("samples per pixel axis must be 1 to 16, got {}", options.samples_per_axis);
-  if (options.region.empty()) return machine.detectorRect();
-  if (!machine.detectorRect().contains(options.region))
-    fail("render region {}x{}+{}+{} lies outside the {}x{} detector", options.region.width,
-         options.region.height, options.region.x, options.region.y, machine.columns,
-         machine.rows);
-  return options.region;
-}
-
-// A band of whole pixel rows, in sample rows [row_begin, row_end).
-struct Band {
-  int row_begin;
-  int row_end;
-};
-
-// Sample-space layout of the part's footprint, aligned to whole pixels.
-struct Footprint {
-  int n;
-  int col_begin, col_end;  // sample columns [col_begin, col_end)
-  std::vector<Band> bands;
-  std::vector<std::vector<uint32_t>> bins;  // triangles per band, mesh order
-  int width() const { return col_end - col_begin; }
-};
-
-Footprint layoutFootprint(const SceneSetup& scene, int n) {
-  Footprint f;
-  f.n = n;
-  f.col_begin = scene.kx0 / n * n;
-  f.col_end = (scene.kx1 / n + 1) * n;
-  const int row_begin = scene.ky0 / n * n, row_end = (scene.ky1 / n + 1) * n;
-  // Band height: enough bands to keep every thread busy, each buffer within
-  // about 1 MiB so it stays in cache.
-  const int pixel_rows = (row_end - row_begin) / n;
-  const int threads = std::max(1, tbb::this_task_arena::max_concurrency());
-  const int by_memory = std::max(1, static_cast<int>((1 << 20) / (8 * f.width() * n)));
-  const int by_threads = std::max(1, (pixel_rows + 8 * threads - 1) / (8 * threads));
-  const int band_rows = std::min(by_memory, by_threads) * n;
-  for (int r = row_begin; r < row_end; r += band_rows)
-    f.bands.push_back({r, std::min(row_end, r + band_rows)});
-  // Bin the triangles by band, keeping mesh order within each bin.
-  f.bins.resize(f.bands.size());
-  const auto band_of = [&](int row) { return static_cast<size_t>((row - row_begin) / band_rows); };
-  for (uint32_t i : scene.visible) {
-    const TriangleSetup& t = scene.triangles[i];
-    for (size_t b = band_of(t.ky0); b <= band_of(t.ky1); ++b) f.bins[b].push_back(i);
-  }
-  return f;
-}
-
-// Distance from the source to each sample's detector point: sqrt(px2[col] + py2d2[row]).
-struct SampleDistances {
-  std::vector<double> px2;  // indexed by sample column - col_begin
-  double d2;
-  const Machine* machine;
-  int n;
-  double py2d2(int sample_row) const {
-    const double py = (machine->cy_px - (sample_row + 0.5) / n) * machine->pitch_v_mm;
-    return py * py + d2;
-  }
-};
-
-SampleDistances sampleDistances(const Machine& machine, const Footprint& f) {
-  SampleDistances s{{}, machine.source_detector_distance_mm * machine.source_detector_distance_mm,
-                    &machine, f.n};
-  s.px2.resize(static_cast<size_t>(f.width()));
-  for (int k = 0; k < f.width(); ++k) {
-    const double px = ((f.col_begin + k + 0.5) / f.n - machine.cx_px) * machine.pitch_u_mm;
-    s.px2[static_cast<size_t>(k)] = px * px;
-  }
-  return s;
-}
 
 // Adds sigma / m over one triangle's spans inside a band to `sum` (row-major,
 // band rows x footprint width).
@@ -126,12 +57,6 @@ void bandSums(const SceneSetup& scene, const WorldMesh& mesh, const Band& band, 
   for (uint32_t i : f.bins[b]) accumulateTriangle(scene.triangles[i], band, f, sum.data());
 }
 
-// Projects the mesh into `scene` and, for a CSG part, marks the pieces.
-void setupMesh(const Machine& machine, const WorldMesh& mesh, int n, const PixelRect& region,
-               SceneSetup& scene) {
-  raster::setupScene(machine, mesh.vertices_mm, mesh.triangles, n, region, scene);
-  if (mesh.csg) raster::assignPieces(*mesh.csg, scene);
-}
 
 // (`out` is resized to the region; `background` where the part's footprint is not.)
 template <typename T, typename Shade>
@@ -163,10 +88,7 @@ void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const R
   if (out.width() != region.width || out.height() != region.height)
     out.resize(region.width, region.height);
 
-  PixelRect footprint_px;
-  if (!scene.empty())
-    footprint_px = {scene.kx0 / n, scene.ky0 / n, scene.kx1 / n + 1 - scene.kx0 / n,
-                    scene.ky1 / n + 1 - scene.ky0 / n};
+  const PixelRect footprint_px = raster::footprintPixels(scene, n);
   // Background outside the footprint.
   tbb::parallel_for(0, region.height, [&](int y) {
     T* row = out.row(y);
@@ -268,6 +190,13 @@ void renderPathLength(const Machine& machine, const WorldMesh& mesh,
 void renderIntensity(const Machine& machine, const WorldMesh& mesh,
                      const TransmissionTable& transmission, const RenderOptions& options,
                      Image& out) {
+  renderPixels(machine, mesh, options, 1.0,
+               [&](double path) { return path == 0.0 ? 1.0 : transmission(path); }, out);
+}
+
+void renderIntensity(const Machine& machine, const WorldMesh& mesh,
+                     const TransmissionTable& transmission, const RenderOptions& options,
+                     ImageT<double>& out) {
   renderPixels(machine, mesh, options, 1.0,
                [&](double path) { return path == 0.0 ? 1.0 : transmission(path); }, out);
 }

@@ -30,6 +30,20 @@ class TransmissionTable {
   double maxPathMm() const { return max_path_mm_; }
   double stepMm() const { return step_mm_; }
 
+  // dI/dx of the interpolant (0 beyond the table, where I is held constant).
+  double slope(double path_mm) const {
+    if (!(path_mm >= 0.0 && path_mm <= max_path_mm_)) return 0.0;
+    const double u = path_mm * inv_step_;
+    const size_t i = std::min(static_cast<size_t>(u), intervals_ - 1);
+    const double t = u - static_cast<double>(i);
+    const double t2 = t * t;
+    const Node& a = nodes_[i];
+    const Node& b = nodes_[i + 1];
+    return ((6 * t2 - 6 * t) * (a.value - b.value) + (3 * t2 - 4 * t + 1) * a.slope +
+            (3 * t2 - 2 * t) * b.slope) *
+           inv_step_;
+  }
+
   // I(x); path in mm.
   double operator()(double path_mm) const {
     const double u = std::clamp(path_mm, 0.0, max_path_mm_) * inv_step_;

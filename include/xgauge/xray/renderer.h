@@ -77,6 +77,12 @@ void renderIntensity(const Machine& machine, const WorldMesh& mesh,
                      const TransmissionTable& transmission, const RenderOptions& options,
                      Image& out);
 
+// Mean intensity over each pixel's samples, as renderIntensity, in double
+// precision (a gradient check differences such images).
+void renderIntensity(const Machine& machine, const WorldMesh& mesh,
+                     const TransmissionTable& transmission, const RenderOptions& options,
+                     ImageT<double>& out);
+
 // Per-pixel evidence of watertightness, for tests and for checking a mesh.
 struct RenderDiagnostics {
   ImageT<int32_t> entries;        // surface entries summed over the pixel's samples

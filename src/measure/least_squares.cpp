@@ -16,7 +16,6 @@ namespace xgauge {
 
 namespace {
 
-constexpr double kStep = 2e-3;  // mm or deg (least_squares.h)
 // The linearisation's steps move the part's projected edges by about this
 // many pixels of the level (least_squares.h).
 constexpr double kLinearStepPx = 0.2;
@@ -119,31 +118,31 @@ class ImageResiduals final : public ceres::CostFunction {
     const size_t n = indices_.size();
     std::vector<double> at = theta_;
     for (size_t k = 0; k < n; ++k) at[static_cast<size_t>(indices_[k])] = parameters[0][k];
-    if (!render(at, r_)) return false;
+    ++evaluations_;
+    if (progress_) progress_->advance();
+    if (jacobians == nullptr || jacobians[0] == nullptr) {
+      if (!model_.residuals(at, level_, samples_, radiographs_, r_) || !sized(r_)) return false;
+      derivative_.resize(r_.size());
+      transform(r_, residuals, derivative_.data());
+      return true;
+    }
+    // The render with derivatives (xray/derivatives.h): one pass gives the
+    // residuals and every column.
+    if (!model_.residualsAndJacobian(at, indices_, level_, samples_, radiographs_, r_, j_) ||
+        !sized(r_))
+      return false;
     derivative_.resize(r_.size());
     transform(r_, residuals, derivative_.data());
-    if (jacobians == nullptr || jacobians[0] == nullptr) return true;
-    std::vector<double> shifted_r;
-    for (size_t k = 0; k < n; ++k) {
-      const auto i = static_cast<size_t>(indices_[k]);
-      std::vector<double> shifted = at;
-      shifted[i] = at[i] + kStep <= model_.upper()[i] ? at[i] + kStep : at[i] - kStep;
-      const double step = shifted[i] - at[i];
-      if (!render(shifted, shifted_r)) return false;
-      // The derivative of the transformed residual: its slope at r times
-      // the raw residual's difference quotient (no jump across the threshold).
-      for (size_t m = 0; m < r_.size(); ++m)
-        jacobians[0][m * n + k] = derivative_[m] * (shifted_r[m] - r_[m]) / step;
-    }
+    // The derivative of the transformed residual: its slope at r times the
+    // raw residual's.
+    for (size_t m = 0; m < r_.size(); ++m)
+      for (size_t k = 0; k < n; ++k) jacobians[0][m * n + k] = derivative_[m] * j_[m * n + k];
     return true;
   }
 
  private:
-  bool render(const std::vector<double>& theta, std::vector<double>& out) const {
-    ++evaluations_;
-    if (progress_) progress_->advance();
-    return model_.residuals(theta, level_, samples_, radiographs_, out) &&
-           out.size() == static_cast<size_t>(num_residuals());
+  bool sized(const std::vector<double>& r) const {
+    return r.size() == static_cast<size_t>(num_residuals());
   }
   void transform(const std::vector<double>& r, double* out, double* derivative) const {
     for (size_t s = 0; s < segments_.size(); ++s) {
@@ -159,7 +158,7 @@ class ImageResiduals final : public ceres::CostFunction {
   std::vector<ResidualSegment> segments_;
   int level_, samples_;
   ProgressBar* progress_;  // null: quiet
-  mutable std::vector<double> r_, derivative_;
+  mutable std::vector<double> r_, j_, derivative_;
   mutable int evaluations_ = 0;
 };
 
@@ -244,10 +243,11 @@ bool linearize(ForwardModel& model, std::span<const double> theta, const std::ve
 
 StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
                               const std::vector<int>& indices, const std::vector<int>& radiographs,
-                              int level, int samples, int max_iterations, bool robust, bool quiet) {
+                              int level, int samples, int max_iterations, bool robust, bool quiet,
+                              std::string_view label) {
   const auto start = std::chrono::steady_clock::now();
   StageReport report;
-  report.name = robust ? "joint, robust least squares" : "joint, least squares";
+  report.name = fmt::format("{}, {}", label, robust ? "robust least squares" : "least squares");
   report.method = "ceres_levenberg_marquardt";
   report.level = level;
   report.samples = samples;
@@ -268,7 +268,7 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
     x[k] = std::clamp(theta[i], model.lower()[i], model.upper()[i]);
   }
   std::optional<ProgressBar> progress;
-  if (!quiet) progress.emplace(report.name, max_iterations * static_cast<int>(n + 2));
+  if (!quiet) progress.emplace(report.name, 2 * max_iterations + 1);
   ImageResiduals cost(model, theta, indices, radiographs, segments, level, samples, r.size(),
                       progress ? &*progress : nullptr);
   ceres::Problem::Options problem_options;

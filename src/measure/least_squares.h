@@ -60,16 +60,19 @@ bool linearize(ForwardModel& model, std::span<const double> theta, const std::ve
                std::vector<ResidualSegment> segments, int level, int samples, LinearizedFit& out);
 
 // Gauss-Newton / Levenberg-Marquardt (Ceres' trust region with bounds) on the
-// per-pixel residuals of `radiographs` over `indices`, from theta; theta is
+// per-pixel residuals of `radiographs` over `indices`, with the Jacobian of
+// the render with derivatives (ForwardModel::residualsAndJacobian), from
+// theta; theta is
 // updated in place when the loss decreases. The robust loss is Huber's (see
 // residualSegments), applied per pixel inside the one residual block by
 // taking the square root of the loss: r -> sign(r) sqrt(2 a |r| - a^2)
 // beyond the threshold a, whose squared sum is Huber's loss and whose
 // Gauss-Newton step is that of the reweighted least squares.
-// `quiet`: no progress bar and no log line (a re-solve inside the budget).
+// `quiet`: no progress bar and no log line (a re-solve inside the budget);
+// `label` starts the stage's name.
 StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
                               const std::vector<int>& indices, const std::vector<int>& radiographs,
                               int level, int samples, int max_iterations, bool robust,
-                              bool quiet = false);
+                              bool quiet = false, std::string_view label = "joint");
 
 }  // namespace xgauge

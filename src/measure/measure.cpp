@@ -165,6 +165,12 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
             ? fmt::format("joint, {} px",
                           model.radiograph(0).levels[static_cast<size_t>(level)].width())
             : std::string("joint");
+    if (stage.gauss_newton) {
+      runner.report(solveLeastSquares(model, theta, all, every_radiograph, level, stage.samples,
+                                      stage.evaluations,
+                                      model.job().loss == LossKind::kMeanAbsolute, false, name));
+      continue;
+    }
     StagePlan plan{name,          stage.method,      all, every_radiograph, level,
                    stage.samples, stage.evaluations, 0};
     for (int i : all) {

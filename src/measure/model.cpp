@@ -2,6 +2,7 @@
 
 #include "xgauge/image/blur.h"
 #include "xgauge/loss/loss.h"
+#include "xgauge/xray/derivatives.h"
 #include "xgauge/xray/renderer.h"
 
 #include <cmath>
@@ -318,12 +319,16 @@ ScatterEstimate ForwardModel::scatter(std::span<const double> theta, int radiogr
 ScatterEstimate ForwardModel::scatterOf(const WorldMesh& mesh, int radiograph, int level) {
   // The kernel is hundreds of pixels wide: a coarse render of the whole
   // detector carries all of G(I).
-  const int coarse_level = std::max(level, levelForWidth(128));
-  const Machine mc = machineAt(coarse_level);
+  const int coarse_level = scatterLevel(level);
   RenderOptions coarse_options;
-  renderIntensity(mc, mesh, transmission_, coarse_options, coarse_);
+  renderIntensity(machineAt(coarse_level), mesh, transmission_, coarse_options, coarse_);
+  return spreadOf(coarse_, coarse_level, radiograph, level, false);
+}
+
+ScatterEstimate ForwardModel::spreadOf(const Image& coarse, int coarse_level, int radiograph,
+                                       int level, bool derivative) const {
   ScatterEstimate out;
-  out.blurred = gaussianBlur(coarse_, job().scatter.sigma_mm / mc.pitch_u_mm);
+  out.blurred = gaussianBlur(coarse, job().scatter.sigma_mm / machineAt(coarse_level).pitch_u_mm);
   // The model's open-beam level in the white region (full-size coordinates).
   const PixelRect white = spec(radiograph).white_region;
   const double full_to_coarse = 1.0 / static_cast<double>(1 << coarse_level);
@@ -337,9 +342,148 @@ ScatterEstimate ForwardModel::scatterOf(const WorldMesh& mesh, int radiograph, i
       white_sum += out.at(white.x + (i + 0.5) * white.width / kGrid,
                           white.y + (j + 0.5) * white.height / kGrid);
   const double w = job().scatter.weight;
-  out.open = (1.0 - w) + w * white_sum / (kGrid * kGrid);
+  out.open = (derivative ? 0.0 : 1.0 - w) + w * white_sum / (kGrid * kGrid);
   out.ratio = static_cast<double>(1 << level) / static_cast<double>(1 << coarse_level);
   return out;
+}
+
+bool ForwardModel::poseVelocities(std::span<const double> theta, std::span<const int> indices,
+                                  int radiograph, std::vector<int>& moving,
+                                  std::vector<Vec3>& velocities) {
+  std::vector<int> vertex_indices;
+  std::vector<double> steps;
+  std::vector<int> position;
+  for (size_t k = 0; k < indices.size(); ++k) {
+    if (kind(indices[k]) == ParameterKind::kMaterial) continue;
+    vertex_indices.push_back(indices[k]);
+    position.push_back(static_cast<int>(k));
+    // Small against any feature, large against rounding; most vertex
+    // expressions are linear in the dimensions, where any step is exact.
+    steps.push_back(1e-4 * std::max(1.0, std::abs(theta[static_cast<size_t>(indices[k])])));
+  }
+  const size_t dims = part_.dimensions().size();
+  const VertexMap map = [&](std::span<const double> t, std::vector<Vec3>& world) {
+    if (part_.tryEvaluate(t.first(dims), part_vertices_)) return false;
+    poseVertices(pose(t, radiograph), part_vertices_, world);
+    return true;
+  };
+  std::vector<Vec3> all;
+  if (!vertexVelocities(map, theta, vertex_indices, steps, all)) return false;
+  // Keep the parameters that move this radiograph's part (another
+  // radiograph's pose does not).
+  const size_t vertices = part_.vertexCount();
+  moving.clear();
+  velocities.clear();
+  for (size_t k = 0; k < vertex_indices.size(); ++k) {
+    const auto first = all.begin() + static_cast<ptrdiff_t>(k * vertices);
+    if (std::all_of(first, first + static_cast<ptrdiff_t>(vertices),
+                    [](const Vec3& v) { return v.isZero(0.0); }))
+      continue;
+    moving.push_back(position[k]);
+    velocities.insert(velocities.end(), first, first + static_cast<ptrdiff_t>(vertices));
+  }
+  return true;
+}
+
+bool ForwardModel::residualsAndJacobian(std::span<const double> theta,
+                                        std::span<const int> indices, int level, int samples,
+                                        std::span<const int> radiographs, std::vector<double>& out,
+                                        std::vector<double>& jacobian) {
+  out.clear();
+  jacobian.clear();
+  XG_CHECK(theta.size() == static_cast<size_t>(size()), "theta has the wrong size");
+  if (part_.invalidity(theta.first(part_.dimensions().size()))) return false;
+  useMaterialOf(theta);
+  const size_t p = indices.size();
+  const ScatterModel& scatter = job().scatter;
+  std::vector<int> moving;
+  std::vector<Vec3> velocities;
+  for (int r : radiographs) {
+    if (tryPose(theta, r)) {
+      out.clear(), jacobian.clear();
+      return false;
+    }
+    const WorldMesh mesh = worldMesh();
+    const PreparedRadiograph& rad = radiograph(r);
+    const PixelRect roi = rad.rois[static_cast<size_t>(level)];
+    if (!poseVelocities(theta, indices, r, moving, velocities)) {
+      out.clear(), jacobian.clear();
+      return false;
+    }
+    const int count = static_cast<int>(moving.size());
+    RenderOptions options;
+    options.samples_per_axis = samples;
+    options.region = roi;
+    IntensityDerivatives d;
+    renderIntensityDerivatives(machineAt(level), mesh, transmission_, options, velocities, count,
+                               d);
+    // The scatter and its derivatives, from coarse renders of the whole detector.
+    std::optional<ScatterEstimate> spread;
+    std::vector<ScatterEstimate> spread_rates;
+    if (scatter.enabled()) {
+      const int coarse_level = scatterLevel(level);
+      IntensityDerivatives coarse;
+      renderIntensityDerivatives(machineAt(coarse_level), mesh, transmission_, RenderOptions{},
+                                 velocities, count, coarse);
+      spread = spreadOf(coarse.intensity, coarse_level, r, level, false);
+      for (const Image& rate : coarse.per_parameter)
+        spread_rates.push_back(spreadOf(rate, coarse_level, r, level, true));
+    }
+    const Image& measured = rad.levels[static_cast<size_t>(level)];
+    const double scale = 1.0 / std::sqrt(static_cast<double>(roi.area()));
+    const size_t first = out.size();
+    out.resize(first + static_cast<size_t>(roi.area()));
+    jacobian.resize(out.size() * p, 0.0);
+    const double w = scatter.weight;
+    for (int y = 0; y < roi.height; ++y)
+      for (int x = 0; x < roi.width; ++x) {
+        const size_t m = first + static_cast<size_t>(y) * static_cast<size_t>(roi.width) +
+                         static_cast<size_t>(x);
+        const auto intensity = static_cast<double>(d.intensity(x, y));
+        double* row = jacobian.data() + m * p;
+        double simulated = intensity;
+        if (!spread) {
+          for (int k = 0; k < count; ++k)
+            row[moving[static_cast<size_t>(k)]] =
+                scale * static_cast<double>(d.per_parameter[static_cast<size_t>(k)](x, y));
+        } else {
+          // out = mix(I, G) / open, as simulatePosed.
+          const double u = roi.x + x + 0.5, v = roi.y + y + 0.5;
+          simulated = static_cast<double>(static_cast<float>(
+              scatter.mix(static_cast<double>(d.intensity(x, y)), spread->at(u, v)) / spread->open));
+          for (int k = 0; k < count; ++k) {
+            const ScatterEstimate& rate = spread_rates[static_cast<size_t>(k)];
+            const double mixed =
+                (1.0 - w) * static_cast<double>(d.per_parameter[static_cast<size_t>(k)](x, y)) +
+                w * rate.at(u, v);
+            row[moving[static_cast<size_t>(k)]] =
+                scale * (mixed - simulated * rate.open) / spread->open;
+          }
+        }
+        out[m] = scale * (simulated - static_cast<double>(measured(roi.x + x, roi.y + y)));
+      }
+  }
+  // Material parameters: central differences of whole renders.
+  std::vector<double> at(theta.begin(), theta.end()), plus, minus;
+  for (size_t k = 0; k < p; ++k) {
+    const auto i = static_cast<size_t>(indices[k]);
+    if (kind(indices[k]) != ParameterKind::kMaterial) continue;
+    const double h = 1e-4 * std::max(1.0, std::abs(theta[i]));
+    at[i] = std::min(theta[i] + h, upper()[i]);
+    const double hi = at[i];
+    const bool ok_plus = residuals(at, level, samples, radiographs, plus);
+    at[i] = std::max(theta[i] - h, lower()[i]);
+    const double lo = at[i];
+    const bool ok_minus = residuals(at, level, samples, radiographs, minus);
+    at[i] = theta[i];
+    if (!ok_plus || !ok_minus || plus.size() != out.size() || !(hi > lo)) {
+      out.clear(), jacobian.clear();
+      return false;
+    }
+    for (size_t m = 0; m < out.size(); ++m) jacobian[m * p + k] = (plus[m] - minus[m]) / (hi - lo);
+  }
+  useMaterialOf(theta);
+  return true;
 }
 
 Image ForwardModel::simulate(std::span<const double> theta, int radiograph, int level, int samples,

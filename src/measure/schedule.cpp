@@ -7,9 +7,9 @@ namespace {
 // First steps of a 6-DOF pose stage: rx, ry, rz (deg), x, y, z (mm).
 const std::vector<double> kPoseSteps{2.0, 5.0, 2.0, 1.0, 1.0, 10.0};
 
-Schedule makeDefault() {
+Schedule makeBobyqa() {
   Schedule s;
-  s.kind = ScheduleKind::kDefault;
+  s.kind = ScheduleKind::kBobyqa;
   PoseSchedule& p = s.pose;
   p.search = {Method::kUniformSampling, 256, 0, 150, {}};
   p.search_around_shadow = true;
@@ -32,6 +32,23 @@ Schedule makeDefault() {
   return s;
 }
 
+Schedule makeDefault() {
+  Schedule s = makeBobyqa();
+  s.kind = ScheduleKind::kDefault;
+  // Each iteration is one render with derivatives; a start from the pose
+  // steps converges in a handful on each level.
+  JointStage coarse;
+  coarse.gauss_newton = true;
+  coarse.min_width_px = 512;
+  coarse.samples = 2;
+  coarse.evaluations = 20;
+  JointStage finer = coarse;
+  finer.min_width_px = 1024;
+  finer.evaluations = 10;
+  s.joint = {coarse, finer};
+  return s;
+}
+
 Schedule makeThesis() {
   Schedule s;
   s.kind = ScheduleKind::kThesis;
@@ -48,17 +65,34 @@ Schedule makeThesis() {
 
 const Schedule& scheduleFor(ScheduleKind kind) {
   static const Schedule kDefault = makeDefault();
+  static const Schedule kBobyqa = makeBobyqa();
   static const Schedule kThesis = makeThesis();
-  return kind == ScheduleKind::kThesis ? kThesis : kDefault;
+  switch (kind) {
+    case ScheduleKind::kDefault:
+      break;
+    case ScheduleKind::kBobyqa:
+      return kBobyqa;
+    case ScheduleKind::kThesis:
+      return kThesis;
+  }
+  return kDefault;
 }
 
 std::string_view scheduleName(ScheduleKind kind) {
-  return kind == ScheduleKind::kThesis ? "thesis" : "default";
+  switch (kind) {
+    case ScheduleKind::kDefault:
+      break;
+    case ScheduleKind::kBobyqa:
+      return "bobyqa";
+    case ScheduleKind::kThesis:
+      return "thesis";
+  }
+  return "default";
 }
 
 std::optional<ScheduleKind> scheduleKindFromName(std::string_view name) {
-  if (name == "default") return ScheduleKind::kDefault;
-  if (name == "thesis") return ScheduleKind::kThesis;
+  for (ScheduleKind kind : {ScheduleKind::kDefault, ScheduleKind::kBobyqa, ScheduleKind::kThesis})
+    if (name == scheduleName(kind)) return kind;
   return std::nullopt;
 }
 

@@ -120,6 +120,14 @@ class ForwardModel {
   // loss. False (and `out` empty) where theta is infeasible.
   bool residuals(std::span<const double> theta, int level, int samples,
                  std::span<const int> radiographs, std::vector<double>& out);
+  // residuals() and their Jacobian d r_m / d theta[indices[k]] at
+  // jacobian[m * indices.size() + k], from the render with derivatives
+  // (xray/derivatives.h) chained through the part model, the poses and the
+  // scatter; material parameters by central differences of renders. False
+  // (both empty) where theta is infeasible.
+  bool residualsAndJacobian(std::span<const double> theta, std::span<const int> indices,
+                            int level, int samples, std::span<const int> radiographs,
+                            std::vector<double>& out, std::vector<double>& jacobian);
   // The simulated normalized image of one radiograph over `region` (pixels of
   // `level`), as compared in the loss. Requires a feasible theta.
   Image simulate(std::span<const double> theta, int radiograph, int level, int samples,
@@ -141,6 +149,16 @@ class ForwardModel {
   WorldMesh posedMesh(std::span<const double> theta, int radiograph);
   WorldMesh worldMesh() const;
   ScatterEstimate scatterOf(const WorldMesh& mesh, int radiograph, int level);
+  // The scatter estimate of a coarse render (a derivative image when
+  // `derivative`: its open level holds only the scatter's part).
+  ScatterEstimate spreadOf(const Image& coarse, int coarse_level, int radiograph, int level,
+                           bool derivative) const;
+  int scatterLevel(int level) const { return std::max(level, levelForWidth(128)); }
+  // d(world vertices)/d theta[indices[k]] of `radiograph`, for the vertex
+  // parameters among `indices` (not the material's); `moving` gets the
+  // positions in `indices` of those that move some vertex.
+  bool poseVelocities(std::span<const double> theta, std::span<const int> indices,
+                      int radiograph, std::vector<int>& moving, std::vector<Vec3>& velocities);
   Image simulatePosed(const WorldMesh& mesh, int radiograph, int level, int samples,
                       const PixelRect& region);
   // Calls use(radiograph, roi, simulated roi) for each of `radiographs`;

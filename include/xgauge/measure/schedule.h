@@ -13,7 +13,12 @@
 //            evaluations (translated: the axis sampled over the sphere, then
 //            Nelder-Mead); then everything together at full size by
 //            Nelder-Mead, 5000 evaluations.
-//   default  the same structure, faster: the position starts at the shadow's
+//   default  the pose steps of `bobyqa` below; then the joint fit by
+//            Gauss-Newton / Levenberg-Marquardt (Ceres) with the Jacobian of
+//            the render with derivatives (xray/derivatives.h) on levels about
+//            512 and 1024 px wide with 2 x 2 area samples, and the
+//            least-squares stage on the level about 2048 px wide.
+//   bobyqa   the same structure, without derivatives: the position starts at the shadow's
 //            centroid and the sampling (150 points) searches a window of a
 //            quarter of the part's size around it; the best 4 distinct samples
 //            are refined by BOBYQA (multi-start) and the best is refined on
@@ -80,6 +85,9 @@ struct JointStage {
   // far (bounds of similar sensitivity keep a trust region well shaped); 0:
   // within the whole bounds.
   double window_steps = 0.0;
+  // Gauss-Newton (Ceres' Levenberg-Marquardt, measure/least_squares.h) for at
+  // most `evaluations` iterations instead of `method`, within the bounds.
+  bool gauss_newton = false;
 };
 
 struct LeastSquaresStage {
@@ -89,7 +97,7 @@ struct LeastSquaresStage {
   int max_iterations = 30;
 };
 
-enum class ScheduleKind { kDefault, kThesis };
+enum class ScheduleKind { kDefault, kBobyqa, kThesis };
 
 struct Schedule {
   ScheduleKind kind = ScheduleKind::kDefault;
@@ -100,7 +108,7 @@ struct Schedule {
 
 // The tables described at the top of this file.
 const Schedule& scheduleFor(ScheduleKind kind);
-// "default", "thesis".
+// "default", "bobyqa", "thesis".
 std::string_view scheduleName(ScheduleKind kind);
 // Inverse of scheduleName; nullopt for an unknown name.
 std::optional<ScheduleKind> scheduleKindFromName(std::string_view name);

@@ -1,18 +1,26 @@
-// Measurement speed and accuracy (issue: measurement). Run from the
-// repository root: build/bench/measure_bench [dataset folder]
+// Measurement speed and accuracy (issues: measurement; analytic derivatives).
+// Run from the repository root: build/bench/measure_bench [dataset folder]
+// [--thesis]
 //
 // On replica prism_a at 4096^2 (simulated into data/prism_a first if
-// missing), on this machine's cores: the wall time of three 2-radiograph
-// measurements with the default schedule (pairs t00-t03, t01-t04, t02-t05),
-// their median, and in the same run the thesis's schedule on t00-t03; both
-// times, their ratio, and both errors (mean and max |error| over the 8
-// dimensions).
+// missing), on this machine's cores, in one run:
+// - three 2-radiograph measurements (pairs t00-t03, t01-t04, t02-t05) with
+//   the default schedule (Gauss-Newton on the render's derivatives) and the
+//   same three with the `bobyqa` schedule (derivative-free, the default
+//   before): each one's wall time with and without the uncertainty budget,
+//   its renders (and how many with derivatives) and its errors (mean and
+//   max |error| over the 8 dimensions); the medians and their ratio;
+// - the time of one evaluation of the residuals of both radiographs at the
+//   final stage's level, without and with the derivatives of the 16
+//   parameters;
+// - with --thesis, the thesis's schedule on t00-t03 too.
 #include "xgauge/core/config.h"
 #include "xgauge/core/log.h"
 #include "xgauge/core/progress.h"
 #include "xgauge/lab/dataset.h"
 #include "xgauge/measure/measure.h"
 #include "xgauge/measure/model.h"
+#include "xgauge/measure/schedule.h"
 #include "xgauge/study/study.h"
 
 #include <fmt/format.h>
@@ -21,6 +29,8 @@
 #include <chrono>
 #include <cstdio>
 #include <filesystem>
+#include <map>
+#include <optional>
 
 namespace fs = std::filesystem;
 using namespace xgauge;
@@ -28,7 +38,10 @@ using namespace xgauge;
 namespace {
 
 struct Run {
-  double seconds;
+  double seconds;      // the whole measurement
+  double fit_seconds;  // without the uncertainty budget and self-checks
+  int renders;
+  int with_derivatives;
   double mean_abs_mm;
   double max_abs_mm;
 };
@@ -37,20 +50,55 @@ struct Run {
 // input is loaded once, in memory.
 Run measureShots(const nlohmann::json& settings, const DatasetTruth& truth, const StudyInputs& inputs,
                  PreparedShots& prepared, const std::vector<std::string>& shots,
-                 const fs::path& settings_file) {
+                 const fs::path& settings_file, std::vector<double>* solution = nullptr,
+                 std::optional<MeasurementInputs>* kept = nullptr) {
   const std::string id = shots[0] + "-" + shots[1];
   const nlohmann::json job = studyJob(settings, truth, shots, id, "machine.json", "material.json");
-  const MeasurementInputs run_inputs = studyRunInputs(job, inputs, settings_file, prepared);
+  MeasurementInputs run_inputs = studyRunInputs(job, inputs, settings_file, prepared);
   const auto start = std::chrono::steady_clock::now();
   ForwardModel model(run_inputs);
   const MeasurementResult result = measure(model, model.start());
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  Run run{seconds, 0.0, 0, 0, 0.0, 0.0};
+  for (const StageReport& stage : result.stages) {
+    run.fit_seconds += stage.seconds;
+    run.renders += stage.evaluations;
+    run.with_derivatives += stage.with_derivatives;
+  }
   double sum = 0.0, worst = 0.0;
   for (const auto& d : result.dimensions) {
     const double e = std::abs(d.value - truth.dimensions.at(d.name));
     sum += e, worst = std::max(worst, e);
   }
-  return {seconds, sum / static_cast<double>(result.dimensions.size()), worst};
+  run.mean_abs_mm = sum / static_cast<double>(result.dimensions.size());
+  run.max_abs_mm = worst;
+  if (solution) *solution = result.theta;
+  if (kept) kept->emplace(std::move(run_inputs));
+  return run;
+}
+
+double median(std::vector<double> values) {
+  std::sort(values.begin(), values.end());
+  return values[values.size() / 2];
+}
+
+void print(const char* schedule, const std::vector<std::string>& pair, const Run& r) {
+  std::printf("%-8s %s-%s: %5.1f s (fit %5.1f s, budget %5.1f s), %5d renders (%3d with derivatives), "
+              "mean |error| %.4f mm, max %.4f mm\n",
+              schedule, pair[0].c_str(), pair[1].c_str(), r.seconds, r.fit_seconds, r.seconds - r.fit_seconds,
+              r.renders, r.with_derivatives, r.mean_abs_mm, r.max_abs_mm);
+}
+
+// Median seconds of `repeat` calls of `f`.
+template <typename F>
+double timed(int repeat, F&& f) {
+  std::vector<double> times;
+  for (int i = 0; i < repeat; ++i) {
+    const auto start = std::chrono::steady_clock::now();
+    f();
+    times.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+  }
+  return median(times);
 }
 
 }  // namespace
@@ -70,25 +118,56 @@ int main(int argc, char** argv) {
     const StudyInputs inputs = prepareStudyInputs(truth, settings, settings_file);
     PreparedShots prepared(inputs.machine);
 
-    std::vector<Run> runs;
-    for (const auto& pair : std::vector<std::vector<std::string>>{{"t00", "t03"}, {"t01", "t04"}, {"t02", "t05"}}) {
-      runs.push_back(measureShots(settings, truth, inputs, prepared, pair, settings_file));
-      std::printf("default schedule, %s-%s: %.1f s, mean |error| %.4f mm, max %.4f mm\n", pair[0].c_str(),
-                  pair[1].c_str(), runs.back().seconds, runs.back().mean_abs_mm, runs.back().max_abs_mm);
+    const std::vector<std::vector<std::string>> pairs{{"t00", "t03"}, {"t01", "t04"}, {"t02", "t05"}};
+    std::map<std::string, std::vector<Run>> runs;
+    std::vector<double> solution;
+    std::optional<MeasurementInputs> first_inputs;
+    for (const char* schedule : {"default", "bobyqa"}) {
+      settings["schedule"] = schedule;
+      for (const auto& pair : pairs) {
+        const bool keep = runs[schedule].empty() && std::string(schedule) == "default";
+        runs[schedule].push_back(measureShots(settings, truth, inputs, prepared, pair, settings_file,
+                                              keep ? &solution : nullptr, keep ? &first_inputs : nullptr));
+        print(schedule, pair, runs[schedule].back());
+      }
     }
-    std::vector<double> times;
-    for (const auto& r : runs) times.push_back(r.seconds);
-    std::sort(times.begin(), times.end());
-    const double median = times[times.size() / 2];
+    if (argc > 2 && std::string(argv[2]) == "--thesis") {
+      settings["schedule"] = "thesis";
+      print("thesis", pairs[0], measureShots(settings, truth, inputs, prepared, pairs[0], settings_file));
+    }
 
-    settings["schedule"] = "thesis";
-    const Run thesis = measureShots(settings, truth, inputs, prepared, {"t00", "t03"}, settings_file);
-    std::printf("thesis schedule,  t00-t03: %.1f s, mean |error| %.4f mm, max %.4f mm\n", thesis.seconds,
-                thesis.mean_abs_mm, thesis.max_abs_mm);
-    std::printf("\nmedian time per 2-radiograph measurement (default): %.1f s (target <= 30 s; thesis GPU: 136 s)\n",
-                median);
-    std::printf("thesis schedule / default schedule on t00-t03: %.1f s / %.1f s = %.2f\n", thesis.seconds,
-                runs[0].seconds, thesis.seconds / runs[0].seconds);
+    auto medianOf = [&](const std::string& schedule, auto field) {
+      std::vector<double> values;
+      for (const Run& r : runs[schedule]) values.push_back(field(r));
+      return median(values);
+    };
+    const double fast = medianOf("default", [](const Run& r) { return r.seconds; });
+    const double slow = medianOf("bobyqa", [](const Run& r) { return r.seconds; });
+    const double fast_fit = medianOf("default", [](const Run& r) { return r.fit_seconds; });
+    const double slow_fit = medianOf("bobyqa", [](const Run& r) { return r.fit_seconds; });
+    std::printf("\nmedian time per 2-radiograph measurement: default %.1f s, bobyqa %.1f s, ratio %.2f\n", fast,
+                slow, slow / fast);
+    std::printf("median time of the fit alone (no budget):  default %.1f s, bobyqa %.1f s, ratio %.2f\n",
+                fast_fit, slow_fit, slow_fit / fast_fit);
+    std::printf("median renders per measurement: default %.0f (%.0f with derivatives), bobyqa %.0f\n",
+                medianOf("default", [](const Run& r) { return r.renders; }),
+                medianOf("default", [](const Run& r) { return r.with_derivatives; }),
+                medianOf("bobyqa", [](const Run& r) { return r.renders; }));
+
+    // One evaluation of both radiographs' residuals at the final stage's
+    // level, without and with the derivatives of every joint parameter.
+    ForwardModel model(*first_inputs);
+    const LeastSquaresStage& ls = scheduleFor(ScheduleKind::kDefault).least_squares;
+    const int level = model.levelForWidth(ls.min_width_px);
+    const std::vector<int> both{0, 1};
+    const std::vector<int> joint = model.jointIndices();
+    std::vector<double> r, j;
+    const double plain = timed(5, [&] { model.residuals(solution, level, ls.samples, both, r); });
+    const double with = timed(5, [&] { model.residualsAndJacobian(solution, joint, level, ls.samples, both, r, j); });
+    std::printf("residuals of both radiographs at %d px, %d x %d samples: %.3f s; with the derivatives of %zu "
+                "parameters: %.3f s (%.1f x)\n",
+                model.radiograph(0).levels[static_cast<size_t>(level)].width(), ls.samples, ls.samples, plain,
+                joint.size(), with, with / plain);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "measure_bench: %s\n", e.what());
     return 1;

@@ -145,6 +145,31 @@ TEST_F(Cli, MissingMaterialForIntensity) {
   expectCleanFailure(r, "--material");
 }
 
+// The derivative images of a part model against central differences: a
+// table row per dimension and pose parameter, exit 0; a tolerance nothing
+// can meet fails with exit 4 and says so.
+TEST_F(Cli, CheckGradientsOfAPartModel) {
+  const std::string machine = write("machine.json", kMachine);
+  const std::string args = "check-gradients " + kRoot + "/parts/prism_jaw.json --machine " +
+                           machine + " --material " + kRoot +
+                           "/examples/aluminium_60kev.json --rotation-deg 10 25 -5"
+                           " --translation-mm -2 1 400 -n 2";
+  const CommandResult r = run(args);
+  ASSERT_EQ(r.status, 0) << r.output;
+  for (const char* row : {"width ", "slot_depth ", "rx ", "z "})
+    EXPECT_NE(r.output.find(row), std::string::npos) << row << "\n" << r.output;
+  EXPECT_EQ(r.output.find("DISAGREES"), std::string::npos) << r.output;
+  const CommandResult strict = run(args + " --tolerance 0");
+  EXPECT_EQ(strict.status, 4) << strict.output;
+  EXPECT_NE(strict.output.find("DISAGREES"), std::string::npos) << strict.output;
+  // A pose outside the beam is an error, not a check.
+  expectCleanFailure(run("check-gradients " + kRoot + "/parts/cuboid.json --machine " + machine +
+                         " --material " + kRoot +
+                         "/examples/aluminium_60kev.json --rotation-deg 0 0 0 "
+                         "--translation-mm 0 0 1200"),
+                     "check the pose");
+}
+
 TEST_F(Cli, OutputFolderMissing) {
   const std::string machine = write("machine.json", kMachine);
   const CommandResult r = run("render " + kRoot + "/parts/cuboid.json --machine " + machine +

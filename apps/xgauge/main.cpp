@@ -41,6 +41,8 @@ int main(int argc, char** argv) {
 
   xgauge::cli::RenderArguments render;
   xgauge::cli::addRenderCommand(app, render);
+  xgauge::cli::GradientArguments gradients;
+  xgauge::cli::addGradientCommand(app, gradients);
   xgauge::cli::NormalizeArguments normalize;
   xgauge::cli::addNormalizeCommand(app, normalize);
   xgauge::cli::MeasureArguments measure;
@@ -67,6 +69,7 @@ int main(int argc, char** argv) {
     xgauge::ThreadLimit limit(threads);
     xgauge::setTiffMemoryLimit(max_image_mb << 20);
     if (app.got_subcommand("render")) xgauge::cli::runRender(render);
+    if (app.got_subcommand("check-gradients")) return xgauge::cli::runGradientCheck(gradients);
     if (app.got_subcommand("simulate")) xgauge::cli::runSimulate(simulate);
     if (app.got_subcommand("normalize")) xgauge::cli::runNormalize(normalize);
     if (app.got_subcommand("measure")) return xgauge::cli::runMeasure(measure);

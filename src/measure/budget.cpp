@@ -20,7 +20,9 @@ constexpr int kBlockPx = 16;  // cluster size of the sandwich (uncertainty.h)
 // does not cancel (groove_left - groove_right: U 0.010 mm, error 0.078 mm).
 constexpr double kCombinationCorrelation = 0.99;
 constexpr double kCombinationGain = 0.2;
-constexpr int kResolveIterations = 10;  // from theta, for an influence moved by u
+// Gauss-Newton iterations of a re-solve from theta, for an influence moved by
+// u; each is one render with derivatives.
+constexpr int kResolveIterations = 40;
 constexpr int kResolveWidthPx = 1024;   // level of those re-solves (at least the fit's)
 constexpr double kNullRatio = 1e-9;     // eigenvalue of the scaled normal matrix below which a
                                         // direction is taken as not determined at all

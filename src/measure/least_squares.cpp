@@ -16,52 +16,6 @@ namespace xgauge {
 
 namespace {
 
-// The linearisation's steps move the part's projected edges by about this
-// many pixels of the level (least_squares.h).
-constexpr double kLinearStepPx = 0.2;
-
-// Each parameter's step for the linearisation at theta, from the size of a
-// pixel of `level` at the part (mm): a dimension or a lateral position moves
-// an edge by it, a depth changes the magnification of the part's outline by
-// it, an angle turns the outline's ends by it.
-std::vector<double> linearSteps(const ForwardModel& model, std::span<const double> theta,
-                                const std::vector<int>& indices, int level) {
-  const Machine machine = model.machineAt(level);
-  const double d = machine.source_detector_distance_mm;
-  const double z = model.pose(theta, 0).apply(model.referenceCentre()).z();
-  const double magnification = d / std::max(1e-6, d - z);
-  const double edge_mm = kLinearStepPx * machine.pitch_u_mm / magnification;
-  const double reach_mm = std::max(1.0, 0.5 * model.partSizeMm());
-  std::vector<double> steps;
-  for (int i : indices) {
-    const std::string& name = model.parameters()[i].name;
-    switch (model.kind(i)) {
-      case ParameterKind::kDimension:
-        steps.push_back(edge_mm);  // mm; a dimension in degrees turns by as much as a rotation
-        if (model.part().dimensions()[static_cast<size_t>(i)].unit == "deg")
-          steps.back() = edge_mm / reach_mm * kRadToDeg;
-        break;
-      case ParameterKind::kPosition:
-        steps.push_back(name.ends_with("/z") ? edge_mm * (d - z) / reach_mm : edge_mm);
-        break;
-      case ParameterKind::kRotation:
-        steps.push_back(edge_mm / reach_mm * kRadToDeg);
-        break;
-      case ParameterKind::kAxis: {
-        double distance = 10.0;
-        for (int r = 0; r < model.radiographCount(); ++r)
-          if (name.starts_with(model.spec(r).name + "/"))
-            distance = std::max(1.0, model.spec(r).distance_mm);
-        steps.push_back(edge_mm / distance * kRadToDeg);
-        break;
-      }
-      case ParameterKind::kMaterial:
-        steps.push_back(2e-3);
-        break;
-    }
-  }
-  return steps;
-}
 // The smallest noise sigma (normalized intensity) the robust loss assumes: a
 // tenth of what the quietest flat panels show per pixel.
 constexpr double kNoiseFloor = 1e-4;
@@ -112,6 +66,7 @@ class ImageResiduals final : public ceres::CostFunction {
   }
 
   int evaluations() const { return evaluations_; }
+  int withDerivatives() const { return with_derivatives_; }
 
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
@@ -128,6 +83,7 @@ class ImageResiduals final : public ceres::CostFunction {
     }
     // The render with derivatives (xray/derivatives.h): one pass gives the
     // residuals and every column.
+    ++with_derivatives_;
     if (!model_.residualsAndJacobian(at, indices_, level_, samples_, radiographs_, r_, j_) ||
         !sized(r_))
       return false;
@@ -159,7 +115,7 @@ class ImageResiduals final : public ceres::CostFunction {
   int level_, samples_;
   ProgressBar* progress_;  // null: quiet
   mutable std::vector<double> r_, j_, derivative_;
-  mutable int evaluations_ = 0;
+  mutable int evaluations_ = 0, with_derivatives_ = 0;
 };
 
 }  // namespace
@@ -211,33 +167,15 @@ bool linearize(ForwardModel& model, std::span<const double> theta, const std::ve
   out.indices = indices;
   out.segments = std::move(segments);
   out.level = level, out.samples = samples;
-  std::vector<double> r, shifted_r;
-  if (!model.residuals(theta, level, samples, radiographs, r)) return false;
+  std::vector<double> r, jacobian;
+  if (!model.residualsAndJacobian(theta, indices, level, samples, radiographs, r, jacobian))
+    return false;
   const auto m = static_cast<Eigen::Index>(r.size());
+  const auto n = static_cast<Eigen::Index>(indices.size());
   out.residuals = Eigen::Map<const Eigen::VectorXd>(r.data(), m);
-  out.jacobian.resize(m, static_cast<Eigen::Index>(indices.size()));
-  std::vector<double> shifted(theta.begin(), theta.end()), back_r;
-  const std::vector<double> steps = linearSteps(model, theta, indices, level);
-  out.steps = steps;
-  for (size_t k = 0; k < indices.size(); ++k) {
-    const auto i = static_cast<size_t>(indices[k]);
-    const double h = steps[k];
-    const bool up = theta[i] + h <= model.upper()[i];
-    const bool down = theta[i] - h >= model.lower()[i];
-    shifted[i] = theta[i] + (up ? h : 0.0);
-    bool ok = model.residuals(shifted, level, samples, radiographs, shifted_r) &&
-              shifted_r.size() == r.size();
-    shifted[i] = theta[i] - (down ? h : 0.0);
-    ok = ok && model.residuals(shifted, level, samples, radiographs, back_r) &&
-         back_r.size() == r.size();
-    shifted[i] = theta[i];
-    if (!ok) return false;
-    const double span = (up ? h : 0.0) + (down ? h : 0.0);
-    if (!(span > 0.0)) return false;
-    for (Eigen::Index j = 0; j < m; ++j)
-      out.jacobian(j, static_cast<Eigen::Index>(k)) =
-          (shifted_r[static_cast<size_t>(j)] - back_r[static_cast<size_t>(j)]) / span;
-  }
+  out.jacobian =
+      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
+          jacobian.data(), m, n);
   return true;
 }
 
@@ -296,6 +234,7 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
   if (progress) progress->finish();
 
   report.evaluations += cost.evaluations();
+  report.with_derivatives = cost.withDerivatives();
   for (const ceres::IterationSummary& it : summary.iterations) report.trace.push_back(2.0 * it.cost);
   report.loss_after = report.loss_before;
   const bool usable = summary.termination_type == ceres::CONVERGENCE ||

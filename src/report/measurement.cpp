@@ -127,6 +127,7 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                       {"level", s.level},
                       {"samples", s.samples},
                       {"evaluations", s.evaluations},
+                      {"with_derivatives", s.with_derivatives},
                       {"seconds", s.seconds},
                       {"loss_before", s.loss_before},
                       {"loss_after", s.loss_after},

@@ -21,7 +21,8 @@ struct StageReport {
   std::string method;
   int level = 0;    // pyramid level (0 = full size)
   int samples = 1;  // area samples per axis
-  int evaluations = 0;
+  int evaluations = 0;  // renders of every radiograph in the stage...
+  int with_derivatives = 0;  // ...of which renders with derivatives (xray/derivatives.h)
   double seconds = 0.0;
   double loss_before = 0.0;  // the stage's objective (for the reweighted least-squares
   double loss_after = 0.0;   // stage: the weighted sum of squared residuals)

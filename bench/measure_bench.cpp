@@ -5,9 +5,9 @@
 // On replica prism_a at 4096^2 (simulated into data/prism_a first if
 // missing), on this machine's cores, in one run:
 // - three 2-radiograph measurements (pairs t00-t03, t01-t04, t02-t05) with
-//   the default schedule (Gauss-Newton on the render's derivatives) and the
-//   same three with the `bobyqa` schedule (derivative-free, the default
-//   before): each one's wall time with and without the uncertainty budget,
+//   the `gauss-newton` schedule (the joint fit on the render's derivatives)
+//   and the same three with the default schedule (derivative-free BOBYQA
+//   joint stages): each one's wall time with and without the uncertainty budget,
 //   its renders (and how many with derivatives) and its errors (mean and
 //   max |error| over the 8 dimensions); the medians and their ratio;
 // - the time of one evaluation of the residuals of both radiographs at the
@@ -48,9 +48,10 @@ struct Run {
 
 // The bench's jobs name the study's record files but never read them: every
 // input is loaded once, in memory.
-Run measureShots(const nlohmann::json& settings, const DatasetTruth& truth, const StudyInputs& inputs,
-                 PreparedShots& prepared, const std::vector<std::string>& shots,
-                 const fs::path& settings_file, std::vector<double>* solution = nullptr,
+Run measureShots(const nlohmann::json& settings, const DatasetTruth& truth,
+                 const StudyInputs& inputs, PreparedShots& prepared,
+                 const std::vector<std::string>& shots, const fs::path& settings_file,
+                 std::vector<double>* solution = nullptr,
                  std::optional<MeasurementInputs>* kept = nullptr) {
   const std::string id = shots[0] + "-" + shots[1];
   const nlohmann::json job = studyJob(settings, truth, shots, id, "machine.json", "material.json");
@@ -58,7 +59,8 @@ Run measureShots(const nlohmann::json& settings, const DatasetTruth& truth, cons
   const auto start = std::chrono::steady_clock::now();
   ForwardModel model(run_inputs);
   const MeasurementResult result = measure(model, model.start());
-  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   Run run{seconds, 0.0, 0, 0, 0.0, 0.0};
   for (const StageReport& stage : result.stages) {
     run.fit_seconds += stage.seconds;
@@ -83,10 +85,11 @@ double median(std::vector<double> values) {
 }
 
 void print(const char* schedule, const std::vector<std::string>& pair, const Run& r) {
-  std::printf("%-8s %s-%s: %5.1f s (fit %5.1f s, budget %5.1f s), %5d renders (%3d with derivatives), "
-              "mean |error| %.4f mm, max %.4f mm\n",
-              schedule, pair[0].c_str(), pair[1].c_str(), r.seconds, r.fit_seconds, r.seconds - r.fit_seconds,
-              r.renders, r.with_derivatives, r.mean_abs_mm, r.max_abs_mm);
+  std::printf(
+      "%-8s %s-%s: %5.1f s (fit %5.1f s, budget %5.1f s), %5d renders (%3d with derivatives), "
+      "mean |error| %.4f mm, max %.4f mm\n",
+      schedule, pair[0].c_str(), pair[1].c_str(), r.seconds, r.fit_seconds,
+      r.seconds - r.fit_seconds, r.renders, r.with_derivatives, r.mean_abs_mm, r.max_abs_mm);
 }
 
 // Median seconds of `repeat` calls of `f`.
@@ -96,7 +99,8 @@ double timed(int repeat, F&& f) {
   for (int i = 0; i < repeat; ++i) {
     const auto start = std::chrono::steady_clock::now();
     f();
-    times.push_back(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
+    times.push_back(
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
   }
   return median(times);
 }
@@ -118,22 +122,25 @@ int main(int argc, char** argv) {
     const StudyInputs inputs = prepareStudyInputs(truth, settings, settings_file);
     PreparedShots prepared(inputs.machine);
 
-    const std::vector<std::vector<std::string>> pairs{{"t00", "t03"}, {"t01", "t04"}, {"t02", "t05"}};
+    const std::vector<std::vector<std::string>> pairs{
+        {"t00", "t03"}, {"t01", "t04"}, {"t02", "t05"}};
     std::map<std::string, std::vector<Run>> runs;
     std::vector<double> solution;
     std::optional<MeasurementInputs> first_inputs;
-    for (const char* schedule : {"default", "bobyqa"}) {
+    for (const char* schedule : {"gauss-newton", "default"}) {
       settings["schedule"] = schedule;
       for (const auto& pair : pairs) {
-        const bool keep = runs[schedule].empty() && std::string(schedule) == "default";
-        runs[schedule].push_back(measureShots(settings, truth, inputs, prepared, pair, settings_file,
-                                              keep ? &solution : nullptr, keep ? &first_inputs : nullptr));
+        const bool keep = runs[schedule].empty() && std::string(schedule) == "gauss-newton";
+        runs[schedule].push_back(measureShots(settings, truth, inputs, prepared, pair,
+                                              settings_file, keep ? &solution : nullptr,
+                                              keep ? &first_inputs : nullptr));
         print(schedule, pair, runs[schedule].back());
       }
     }
     if (argc > 2 && std::string(argv[2]) == "--thesis") {
       settings["schedule"] = "thesis";
-      print("thesis", pairs[0], measureShots(settings, truth, inputs, prepared, pairs[0], settings_file));
+      print("thesis", pairs[0],
+            measureShots(settings, truth, inputs, prepared, pairs[0], settings_file));
     }
 
     auto medianOf = [&](const std::string& schedule, auto field) {
@@ -141,18 +148,23 @@ int main(int argc, char** argv) {
       for (const Run& r : runs[schedule]) values.push_back(field(r));
       return median(values);
     };
-    const double fast = medianOf("default", [](const Run& r) { return r.seconds; });
-    const double slow = medianOf("bobyqa", [](const Run& r) { return r.seconds; });
-    const double fast_fit = medianOf("default", [](const Run& r) { return r.fit_seconds; });
-    const double slow_fit = medianOf("bobyqa", [](const Run& r) { return r.fit_seconds; });
-    std::printf("\nmedian time per 2-radiograph measurement: default %.1f s, bobyqa %.1f s, ratio %.2f\n", fast,
-                slow, slow / fast);
-    std::printf("median time of the fit alone (no budget):  default %.1f s, bobyqa %.1f s, ratio %.2f\n",
-                fast_fit, slow_fit, slow_fit / fast_fit);
-    std::printf("median renders per measurement: default %.0f (%.0f with derivatives), bobyqa %.0f\n",
-                medianOf("default", [](const Run& r) { return r.renders; }),
-                medianOf("default", [](const Run& r) { return r.with_derivatives; }),
-                medianOf("bobyqa", [](const Run& r) { return r.renders; }));
+    const double fast = medianOf("gauss-newton", [](const Run& r) { return r.seconds; });
+    const double slow = medianOf("default", [](const Run& r) { return r.seconds; });
+    const double fast_fit = medianOf("gauss-newton", [](const Run& r) { return r.fit_seconds; });
+    const double slow_fit = medianOf("default", [](const Run& r) { return r.fit_seconds; });
+    std::printf(
+        "\nmedian time per 2-radiograph measurement: gauss-newton %.1f s, default %.1f s, ratio "
+        "%.2f\n",
+        fast, slow, slow / fast);
+    std::printf(
+        "median time of the fit alone (no budget):  gauss-newton %.1f s, default %.1f s, ratio "
+        "%.2f\n",
+        fast_fit, slow_fit, slow_fit / fast_fit);
+    std::printf(
+        "median renders per measurement: gauss-newton %.0f (%.0f with derivatives), default %.0f\n",
+        medianOf("gauss-newton", [](const Run& r) { return r.renders; }),
+        medianOf("gauss-newton", [](const Run& r) { return r.with_derivatives; }),
+        medianOf("default", [](const Run& r) { return r.renders; }));
 
     // One evaluation of both radiographs' residuals at the final stage's
     // level, without and with the derivatives of every joint parameter.
@@ -163,11 +175,14 @@ int main(int argc, char** argv) {
     const std::vector<int> joint = model.jointIndices();
     std::vector<double> r, j;
     const double plain = timed(5, [&] { model.residuals(solution, level, ls.samples, both, r); });
-    const double with = timed(5, [&] { model.residualsAndJacobian(solution, joint, level, ls.samples, both, r, j); });
-    std::printf("residuals of both radiographs at %d px, %d x %d samples: %.3f s; with the derivatives of %zu "
-                "parameters: %.3f s (%.1f x)\n",
-                model.radiograph(0).levels[static_cast<size_t>(level)].width(), ls.samples, ls.samples, plain,
-                joint.size(), with, with / plain);
+    const double with = timed(
+        5, [&] { model.residualsAndJacobian(solution, joint, level, ls.samples, both, r, j); });
+    std::printf(
+        "residuals of both radiographs at %d px, %d x %d samples: %.3f s; with the derivatives of "
+        "%zu "
+        "parameters: %.3f s (%.1f x)\n",
+        model.radiograph(0).levels[static_cast<size_t>(level)].width(), ls.samples, ls.samples,
+        plain, joint.size(), with, with / plain);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "measure_bench: %s\n", e.what());
     return 1;

@@ -20,9 +20,7 @@ constexpr int kBlockPx = 16;  // cluster size of the sandwich (uncertainty.h)
 // does not cancel (groove_left - groove_right: U 0.010 mm, error 0.078 mm).
 constexpr double kCombinationCorrelation = 0.99;
 constexpr double kCombinationGain = 0.2;
-// Gauss-Newton iterations of a re-solve from theta, for an influence moved by
-// u; each is one render with derivatives.
-constexpr int kResolveIterations = 40;
+constexpr int kResolveIterations = 10;  // from theta, for an influence moved by u
 constexpr int kResolveWidthPx = 1024;   // level of those re-solves (at least the fit's)
 constexpr double kNullRatio = 1e-9;     // eigenvalue of the scaled normal matrix below which a
                                         // direction is taken as not determined at all
@@ -124,9 +122,10 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   const bool material_free = !model.materialIndices().empty();
   auto solveFrom = [&](ForwardModel& with, std::vector<double>& solved) {
     solved.assign(theta.begin(), theta.end());
-    const StageReport report = solveLeastSquares(with, solved, fit.indices, radiographs, level,
-                                                 samples, kResolveIterations, robust,
-                                                 /*quiet=*/true);
+    const StageReport report =
+        solveLeastSquares(with, solved, fit.indices, radiographs, level, samples,
+                          kResolveIterations, robust, JacobianKind::kForwardDifferences,
+                          /*quiet=*/true);
     return report.termination != "start point invalid";
   };
   std::vector<double> reference;

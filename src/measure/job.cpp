@@ -230,7 +230,7 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
   const auto kind = scheduleKindFromName(schedule);
   if (!kind)
     root.at("schedule")
-        .fail(fmt::format("unknown schedule '{}' (known: default, bobyqa, thesis)", schedule));
+        .fail(fmt::format("unknown schedule '{}' (known: default, gauss-newton, thesis)", schedule));
   job.schedule = *kind;
   const std::string loss = root.get<std::string>("loss", "l1");
   if (loss != "l1" && loss != "l2") root.at("loss").fail("expected \"l1\" or \"l2\"");

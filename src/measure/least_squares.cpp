@@ -16,6 +16,54 @@ namespace xgauge {
 
 namespace {
 
+constexpr double kStep = 2e-3;  // mm or deg: forward differences (least_squares.h)
+
+// The linearisation's steps move the part's projected edges by about this
+// many pixels of the level (least_squares.h).
+constexpr double kLinearStepPx = 0.2;
+
+// Each parameter's step for the linearisation at theta, from the size of a
+// pixel of `level` at the part (mm): a dimension or a lateral position moves
+// an edge by it, a depth changes the magnification of the part's outline by
+// it, an angle turns the outline's ends by it.
+std::vector<double> linearSteps(const ForwardModel& model, std::span<const double> theta,
+                                const std::vector<int>& indices, int level) {
+  const Machine machine = model.machineAt(level);
+  const double d = machine.source_detector_distance_mm;
+  const double z = model.pose(theta, 0).apply(model.referenceCentre()).z();
+  const double magnification = d / std::max(1e-6, d - z);
+  const double edge_mm = kLinearStepPx * machine.pitch_u_mm / magnification;
+  const double reach_mm = std::max(1.0, 0.5 * model.partSizeMm());
+  std::vector<double> steps;
+  for (int i : indices) {
+    const std::string& name = model.parameters()[i].name;
+    switch (model.kind(i)) {
+      case ParameterKind::kDimension:
+        steps.push_back(edge_mm);  // mm; a dimension in degrees turns by as much as a rotation
+        if (model.part().dimensions()[static_cast<size_t>(i)].unit == "deg")
+          steps.back() = edge_mm / reach_mm * kRadToDeg;
+        break;
+      case ParameterKind::kPosition:
+        steps.push_back(name.ends_with("/z") ? edge_mm * (d - z) / reach_mm : edge_mm);
+        break;
+      case ParameterKind::kRotation:
+        steps.push_back(edge_mm / reach_mm * kRadToDeg);
+        break;
+      case ParameterKind::kAxis: {
+        double distance = 10.0;
+        for (int r = 0; r < model.radiographCount(); ++r)
+          if (name.starts_with(model.spec(r).name + "/"))
+            distance = std::max(1.0, model.spec(r).distance_mm);
+        steps.push_back(edge_mm / distance * kRadToDeg);
+        break;
+      }
+      case ParameterKind::kMaterial:
+        steps.push_back(2e-3);
+        break;
+    }
+  }
+  return steps;
+}
 // The smallest noise sigma (normalized intensity) the robust loss assumes: a
 // tenth of what the quietest flat panels show per pixel.
 constexpr double kNoiseFloor = 1e-4;
@@ -52,7 +100,7 @@ class ImageResiduals final : public ceres::CostFunction {
  public:
   ImageResiduals(ForwardModel& model, std::vector<double> theta, std::vector<int> indices,
                  std::vector<int> radiographs, std::vector<ResidualSegment> segments, int level,
-                 int samples, size_t count, ProgressBar* progress)
+                 int samples, size_t count, JacobianKind jacobian, ProgressBar* progress)
       : model_(model),
         theta_(std::move(theta)),
         indices_(std::move(indices)),
@@ -60,6 +108,7 @@ class ImageResiduals final : public ceres::CostFunction {
         segments_(std::move(segments)),
         level_(level),
         samples_(samples),
+        jacobian_(jacobian),
         progress_(progress) {
     set_num_residuals(static_cast<int>(count));
     mutable_parameter_block_sizes()->push_back(static_cast<int>(indices_.size()));
@@ -73,32 +122,53 @@ class ImageResiduals final : public ceres::CostFunction {
     const size_t n = indices_.size();
     std::vector<double> at = theta_;
     for (size_t k = 0; k < n; ++k) at[static_cast<size_t>(indices_[k])] = parameters[0][k];
-    ++evaluations_;
-    if (progress_) progress_->advance();
-    if (jacobians == nullptr || jacobians[0] == nullptr) {
-      if (!model_.residuals(at, level_, samples_, radiographs_, r_) || !sized(r_)) return false;
+    const bool want_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
+    if (want_jacobian && jacobian_ == JacobianKind::kRenderDerivatives) {
+      // The render with derivatives (xray/derivatives.h): one pass gives the
+      // residuals and every column.
+      count();
+      ++with_derivatives_;
+      if (!model_.residualsAndJacobian(at, indices_, level_, samples_, radiographs_, r_, j_) ||
+          !sized(r_))
+        return false;
       derivative_.resize(r_.size());
       transform(r_, residuals, derivative_.data());
+      // The derivative of the transformed residual: its slope at r times the
+      // raw residual's.
+      for (size_t m = 0; m < r_.size(); ++m)
+        for (size_t k = 0; k < n; ++k) jacobians[0][m * n + k] = derivative_[m] * j_[m * n + k];
       return true;
     }
-    // The render with derivatives (xray/derivatives.h): one pass gives the
-    // residuals and every column.
-    ++with_derivatives_;
-    if (!model_.residualsAndJacobian(at, indices_, level_, samples_, radiographs_, r_, j_) ||
-        !sized(r_))
-      return false;
+    if (!render(at, r_)) return false;
     derivative_.resize(r_.size());
     transform(r_, residuals, derivative_.data());
-    // The derivative of the transformed residual: its slope at r times the
-    // raw residual's.
-    for (size_t m = 0; m < r_.size(); ++m)
-      for (size_t k = 0; k < n; ++k) jacobians[0][m * n + k] = derivative_[m] * j_[m * n + k];
+    if (!want_jacobian) return true;
+    std::vector<double> shifted_r;
+    for (size_t k = 0; k < n; ++k) {
+      const auto i = static_cast<size_t>(indices_[k]);
+      std::vector<double> shifted = at;
+      shifted[i] = at[i] + kStep <= model_.upper()[i] ? at[i] + kStep : at[i] - kStep;
+      const double step = shifted[i] - at[i];
+      if (!render(shifted, shifted_r)) return false;
+      // The derivative of the transformed residual: its slope at r times
+      // the raw residual's difference quotient (no jump across the threshold).
+      for (size_t m = 0; m < r_.size(); ++m)
+        jacobians[0][m * n + k] = derivative_[m] * (shifted_r[m] - r_[m]) / step;
+    }
     return true;
   }
 
  private:
   bool sized(const std::vector<double>& r) const {
     return r.size() == static_cast<size_t>(num_residuals());
+  }
+  void count() const {
+    ++evaluations_;
+    if (progress_) progress_->advance();
+  }
+  bool render(const std::vector<double>& theta, std::vector<double>& out) const {
+    count();
+    return model_.residuals(theta, level_, samples_, radiographs_, out) && sized(out);
   }
   void transform(const std::vector<double>& r, double* out, double* derivative) const {
     for (size_t s = 0; s < segments_.size(); ++s) {
@@ -113,6 +183,7 @@ class ImageResiduals final : public ceres::CostFunction {
   std::vector<int> indices_, radiographs_;
   std::vector<ResidualSegment> segments_;
   int level_, samples_;
+  JacobianKind jacobian_;
   ProgressBar* progress_;  // null: quiet
   mutable std::vector<double> r_, j_, derivative_;
   mutable int evaluations_ = 0, with_derivatives_ = 0;
@@ -167,22 +238,40 @@ bool linearize(ForwardModel& model, std::span<const double> theta, const std::ve
   out.indices = indices;
   out.segments = std::move(segments);
   out.level = level, out.samples = samples;
-  std::vector<double> r, jacobian;
-  if (!model.residualsAndJacobian(theta, indices, level, samples, radiographs, r, jacobian))
-    return false;
+  std::vector<double> r, shifted_r;
+  if (!model.residuals(theta, level, samples, radiographs, r)) return false;
   const auto m = static_cast<Eigen::Index>(r.size());
-  const auto n = static_cast<Eigen::Index>(indices.size());
   out.residuals = Eigen::Map<const Eigen::VectorXd>(r.data(), m);
-  out.jacobian =
-      Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>(
-          jacobian.data(), m, n);
+  out.jacobian.resize(m, static_cast<Eigen::Index>(indices.size()));
+  std::vector<double> shifted(theta.begin(), theta.end()), back_r;
+  const std::vector<double> steps = linearSteps(model, theta, indices, level);
+  out.steps = steps;
+  for (size_t k = 0; k < indices.size(); ++k) {
+    const auto i = static_cast<size_t>(indices[k]);
+    const double h = steps[k];
+    const bool up = theta[i] + h <= model.upper()[i];
+    const bool down = theta[i] - h >= model.lower()[i];
+    shifted[i] = theta[i] + (up ? h : 0.0);
+    bool ok = model.residuals(shifted, level, samples, radiographs, shifted_r) &&
+              shifted_r.size() == r.size();
+    shifted[i] = theta[i] - (down ? h : 0.0);
+    ok = ok && model.residuals(shifted, level, samples, radiographs, back_r) &&
+         back_r.size() == r.size();
+    shifted[i] = theta[i];
+    if (!ok) return false;
+    const double span = (up ? h : 0.0) + (down ? h : 0.0);
+    if (!(span > 0.0)) return false;
+    for (Eigen::Index j = 0; j < m; ++j)
+      out.jacobian(j, static_cast<Eigen::Index>(k)) =
+          (shifted_r[static_cast<size_t>(j)] - back_r[static_cast<size_t>(j)]) / span;
+  }
   return true;
 }
 
 StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
                               const std::vector<int>& indices, const std::vector<int>& radiographs,
-                              int level, int samples, int max_iterations, bool robust, bool quiet,
-                              std::string_view label) {
+                              int level, int samples, int max_iterations, bool robust,
+                              JacobianKind jacobian, bool quiet, std::string_view label) {
   const auto start = std::chrono::steady_clock::now();
   StageReport report;
   report.name = fmt::format("{}, {}", label, robust ? "robust least squares" : "least squares");
@@ -206,9 +295,12 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
     x[k] = std::clamp(theta[i], model.lower()[i], model.upper()[i]);
   }
   std::optional<ProgressBar> progress;
-  if (!quiet) progress.emplace(report.name, 2 * max_iterations + 1);
+  if (!quiet)
+    progress.emplace(report.name, jacobian == JacobianKind::kRenderDerivatives
+                                      ? 2 * max_iterations + 1
+                                      : max_iterations * static_cast<int>(n + 2));
   ImageResiduals cost(model, theta, indices, radiographs, segments, level, samples, r.size(),
-                      progress ? &*progress : nullptr);
+                      jacobian, progress ? &*progress : nullptr);
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
@@ -235,7 +327,8 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
 
   report.evaluations += cost.evaluations();
   report.with_derivatives = cost.withDerivatives();
-  for (const ceres::IterationSummary& it : summary.iterations) report.trace.push_back(2.0 * it.cost);
+  for (const ceres::IterationSummary& it : summary.iterations)
+    report.trace.push_back(2.0 * it.cost);
   report.loss_after = report.loss_before;
   const bool usable = summary.termination_type == ceres::CONVERGENCE ||
                       summary.termination_type == ceres::NO_CONVERGENCE ||

@@ -24,13 +24,14 @@ struct ResidualSegment {
   double threshold = 0.0;
 };
 
-// The residuals and their Jacobian at one point.
+// The residuals and their Jacobian by central differences, at one point.
 struct LinearizedFit {
   std::vector<int> indices;  // parameters (columns of jacobian)
   std::vector<ResidualSegment> segments;
   int level = 0, samples = 1;
   Eigen::VectorXd residuals;  // simulated - measured, scaled as ForwardModel::residuals
   Eigen::MatrixXd jacobian;   // d residual / d theta[indices[k]]
+  std::vector<double> steps;  // the step of each column's difference
   // Huber's psi(r) / r per residual: 1 inside the threshold, threshold / |r| beyond.
   Eigen::VectorXd weights() const;
 };
@@ -45,21 +46,34 @@ std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<con
                                               std::span<const int> radiographs, int level,
                                               int samples, bool robust);
 
-// The residuals at theta and their Jacobian from the render with
-// derivatives (ForwardModel::residualsAndJacobian). Its columns are exact
-// for the sampled image, so a parameter combination the radiographs cannot
-// see (two edges that move with the part) gives exactly dependent columns.
-// Central differences with steps that moved the outline by 0.2 pixels came
-// before: their columns carried the kinks of samples crossing edges within
-// the step, and an exact degeneracy showed as a direction with a small but
-// non-zero eigenvalue. False where theta cannot be simulated.
+// The residuals at theta and their Jacobian by central differences
+// (one-sided at a bound), each parameter's step chosen so that the part's
+// projected outline moves by about 0.2 pixels of the level: the sample rays
+// an edge crosses (jumps of the rendered image) then average out along the
+// edge while the image is still linear in the step. With one step for all
+// (2e-3 mm or deg), a depth or an angle moved the outline by a few
+// thousandths of a pixel, its column came out as a handful of jumps, and the
+// budget of a cuboid traded the pose for the sizes (measured: a 0.5 mm
+// source-detector distance "moved" the sides by 5 um where a re-solve moves
+// them by none). The render's exact derivatives (xray/derivatives.h) are not
+// used here: a wall seen along the beam changes the sampled image only in a
+// strip of samples, and where the strip is narrower than the sample spacing
+// and holds none, the exact derivative of the edge's position is zero (a
+// single face-on view of a box then made its width look undetermined). A
+// step of 0.2 pixels lets the strip cross samples. False where theta or a
+// step cannot be simulated.
 bool linearize(ForwardModel& model, std::span<const double> theta, const std::vector<int>& indices,
                std::vector<ResidualSegment> segments, int level, int samples, LinearizedFit& out);
 
+// Where a least-squares stage's Jacobian comes from: forward differences of
+// 2e-3 (mm or deg), one render per parameter, or the render with derivatives
+// (ForwardModel::residualsAndJacobian), one render for all; see
+// docs/method.md, "Derivatives of the radiograph", for when the second is
+// blind (a wall's strip that holds no sample).
+enum class JacobianKind { kForwardDifferences, kRenderDerivatives };
+
 // Gauss-Newton / Levenberg-Marquardt (Ceres' trust region with bounds) on the
-// per-pixel residuals of `radiographs` over `indices`, with the Jacobian of
-// the render with derivatives (ForwardModel::residualsAndJacobian), from
-// theta; theta is
+// per-pixel residuals of `radiographs` over `indices`, from theta; theta is
 // updated in place when the loss decreases. The robust loss is Huber's (see
 // residualSegments), applied per pixel inside the one residual block by
 // taking the square root of the loss: r -> sign(r) sqrt(2 a |r| - a^2)
@@ -70,6 +84,7 @@ bool linearize(ForwardModel& model, std::span<const double> theta, const std::ve
 StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
                               const std::vector<int>& indices, const std::vector<int>& radiographs,
                               int level, int samples, int max_iterations, bool robust,
-                              bool quiet = false, std::string_view label = "joint");
+                              JacobianKind jacobian, bool quiet = false,
+                              std::string_view label = "joint");
 
 }  // namespace xgauge

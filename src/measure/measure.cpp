@@ -168,7 +168,8 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     if (stage.gauss_newton) {
       runner.report(solveLeastSquares(model, theta, all, every_radiograph, level, stage.samples,
                                       stage.evaluations,
-                                      model.job().loss == LossKind::kMeanAbsolute, false, name));
+                                      model.job().loss == LossKind::kMeanAbsolute,
+                                      JacobianKind::kRenderDerivatives, false, name));
       continue;
     }
     StagePlan plan{name,          stage.method,      all, every_radiograph, level,
@@ -192,7 +193,9 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
   if (ls.enabled)
     runner.report(solveLeastSquares(
         model, theta, all, every_radiograph, model.levelForWidth(ls.min_width_px), ls.samples,
-        ls.max_iterations, model.job().loss == LossKind::kMeanAbsolute));
+        ls.max_iterations, model.job().loss == LossKind::kMeanAbsolute,
+        ls.render_derivatives ? JacobianKind::kRenderDerivatives
+                              : JacobianKind::kForwardDifferences));
 }
 
 // The uncertainty budget and the self-checks, from the residuals and their

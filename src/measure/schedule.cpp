@@ -7,9 +7,9 @@ namespace {
 // First steps of a 6-DOF pose stage: rx, ry, rz (deg), x, y, z (mm).
 const std::vector<double> kPoseSteps{2.0, 5.0, 2.0, 1.0, 1.0, 10.0};
 
-Schedule makeBobyqa() {
+Schedule makeDefault() {
   Schedule s;
-  s.kind = ScheduleKind::kBobyqa;
+  s.kind = ScheduleKind::kDefault;
   PoseSchedule& p = s.pose;
   p.search = {Method::kUniformSampling, 256, 0, 150, {}};
   p.search_around_shadow = true;
@@ -32,9 +32,9 @@ Schedule makeBobyqa() {
   return s;
 }
 
-Schedule makeDefault() {
-  Schedule s = makeBobyqa();
-  s.kind = ScheduleKind::kDefault;
+Schedule makeGaussNewton() {
+  Schedule s = makeDefault();
+  s.kind = ScheduleKind::kGaussNewton;
   // Each iteration is one render with derivatives; a start from the pose
   // steps converges in a handful on each level.
   JointStage coarse;
@@ -46,6 +46,7 @@ Schedule makeDefault() {
   finer.min_width_px = 1024;
   finer.evaluations = 10;
   s.joint = {coarse, finer};
+  s.least_squares.render_derivatives = true;
   return s;
 }
 
@@ -65,13 +66,13 @@ Schedule makeThesis() {
 
 const Schedule& scheduleFor(ScheduleKind kind) {
   static const Schedule kDefault = makeDefault();
-  static const Schedule kBobyqa = makeBobyqa();
+  static const Schedule kGaussNewton = makeGaussNewton();
   static const Schedule kThesis = makeThesis();
   switch (kind) {
     case ScheduleKind::kDefault:
       break;
-    case ScheduleKind::kBobyqa:
-      return kBobyqa;
+    case ScheduleKind::kGaussNewton:
+      return kGaussNewton;
     case ScheduleKind::kThesis:
       return kThesis;
   }
@@ -82,8 +83,8 @@ std::string_view scheduleName(ScheduleKind kind) {
   switch (kind) {
     case ScheduleKind::kDefault:
       break;
-    case ScheduleKind::kBobyqa:
-      return "bobyqa";
+    case ScheduleKind::kGaussNewton:
+      return "gauss-newton";
     case ScheduleKind::kThesis:
       return "thesis";
   }
@@ -91,7 +92,8 @@ std::string_view scheduleName(ScheduleKind kind) {
 }
 
 std::optional<ScheduleKind> scheduleKindFromName(std::string_view name) {
-  for (ScheduleKind kind : {ScheduleKind::kDefault, ScheduleKind::kBobyqa, ScheduleKind::kThesis})
+  for (ScheduleKind kind :
+       {ScheduleKind::kDefault, ScheduleKind::kGaussNewton, ScheduleKind::kThesis})
     if (name == scheduleName(kind)) return kind;
   return std::nullopt;
 }

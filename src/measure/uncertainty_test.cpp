@@ -228,12 +228,13 @@ TEST_F(Uncertainty, TheStatisticalPartMatchesTheSpreadOverNoise) {
     for (double x : reported[name]) u += x / static_cast<double>(v.size());
     // Known shortfall: along a weakly determined direction (here the box's
     // depth and height against its distance from the source, seen by a
-    // translated pair) the minimum moves along a curved valley from noise
-    // draw to noise draw, and the linear covariance gives less than the
-    // spread seen. The fit used to stop short in that valley (forward
-    // differences) and so spread less than its minimum does; with the
-    // render's derivatives it converges and the gap shows in full. The bound
-    // below catches a budget that loses its statistical part or inflates it.
+    // translated pair) the fit's finite-difference Gauss-Newton steps stop
+    // at slightly different points of a curved valley for each noise draw,
+    // and the linear covariance gives about half of the spread seen
+    // (measured: size_y 0.41, size_z 0.50 of it; size_x, across the beam
+    // and the translation, 0.9). The bound below catches a budget that loses
+    // its statistical part or inflates it; the analytic-derivative issue
+    // is expected to close the gap.
     const double floor = name == "size_x" ? 0.6 : 0.35;
     EXPECT_GT(u / spread, floor) << name << ": reported " << u << ", spread " << spread;
     EXPECT_LT(u / spread, 1.6) << name << ": reported " << u << ", spread " << spread;

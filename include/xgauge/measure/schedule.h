@@ -13,12 +13,7 @@
 //            evaluations (translated: the axis sampled over the sphere, then
 //            Nelder-Mead); then everything together at full size by
 //            Nelder-Mead, 5000 evaluations.
-//   default  the pose steps of `bobyqa` below; then the joint fit by
-//            Gauss-Newton / Levenberg-Marquardt (Ceres) with the Jacobian of
-//            the render with derivatives (xray/derivatives.h) on levels about
-//            512 and 1024 px wide with 2 x 2 area samples, and the
-//            least-squares stage on the level about 2048 px wide.
-//   bobyqa   the same structure, without derivatives: the position starts at the shadow's
+//   default  the same structure, faster: the position starts at the shadow's
 //            centroid and the sampling (150 points) searches a window of a
 //            quarter of the part's size around it; the best 4 distinct samples
 //            are refined by BOBYQA (multi-start) and the best is refined on
@@ -28,6 +23,16 @@
 //            area samples, each in a window of ten first steps around the
 //            estimate so far; then least squares on the residuals (reweighted
 //            for the L1 loss) on the finest of those levels.
+//   gauss-newton  the default's pose steps; then the joint fit by
+//            Gauss-Newton / Levenberg-Marquardt (Ceres) with the Jacobian of
+//            the render with derivatives (xray/derivatives.h) on levels about
+//            512 and 1024 px wide with 2 x 2 area samples, and the
+//            least-squares stage on the level about 2048 px wide. Opt-in: a
+//            wall seen along the beam moves the sampled image only in a strip
+//            of samples, and where that strip is narrower than the sample
+//            spacing the exact derivative of its edge is zero, so the joint
+//            fit may leave such an edge where the pose steps put it
+//            (docs/method.md, "Derivatives of the radiograph").
 #pragma once
 
 #include "xgauge/optimize/minimize.h"
@@ -63,7 +68,7 @@ struct PoseSchedule {
   // point once.
   int multistart = 0;
   double separation = 0.05;
-  PoseStage local;                   // 6-DOF
+  PoseStage local;                    // 6-DOF
   std::vector<PoseStage> finer = {};  // 6-DOF refinements, in order
 
   // Translated radiographs.
@@ -95,9 +100,11 @@ struct LeastSquaresStage {
   int min_width_px = 2048;
   int samples = 2;
   int max_iterations = 30;
+  // The Jacobian from the render with derivatives (else forward differences).
+  bool render_derivatives = false;
 };
 
-enum class ScheduleKind { kDefault, kBobyqa, kThesis };
+enum class ScheduleKind { kDefault, kGaussNewton, kThesis };
 
 struct Schedule {
   ScheduleKind kind = ScheduleKind::kDefault;
@@ -108,7 +115,7 @@ struct Schedule {
 
 // The tables described at the top of this file.
 const Schedule& scheduleFor(ScheduleKind kind);
-// "default", "bobyqa", "thesis".
+// "default", "gauss-newton", "thesis".
 std::string_view scheduleName(ScheduleKind kind);
 // Inverse of scheduleName; nullopt for an unknown name.
 std::optional<ScheduleKind> scheduleKindFromName(std::string_view name);

@@ -449,8 +449,7 @@ bool ForwardModel::residualsAndJacobian(std::span<const double> theta,
         } else {
           // out = mix(I, G) / open, as simulatePosed.
           const double u = roi.x + x + 0.5, v = roi.y + y + 0.5;
-          simulated = static_cast<double>(static_cast<float>(
-              scatter.mix(static_cast<double>(d.intensity(x, y)), spread->at(u, v)) / spread->open));
+          simulated = static_cast<double>(spread->simulated(scatter, intensity, u, v));
           for (int k = 0; k < count; ++k) {
             const ScatterEstimate& rate = spread_rates[static_cast<size_t>(k)];
             const double mixed =
@@ -506,10 +505,9 @@ Image ForwardModel::simulatePosed(const WorldMesh& mesh, int radiograph, int lev
   // measured image.
   const ScatterEstimate spread = scatterOf(mesh, radiograph, level);
   for (int y = 0; y < out.height(); ++y)
-    for (int x = 0; x < out.width(); ++x) {
-      const double g = spread.at(region.x + x + 0.5, region.y + y + 0.5);
-      out(x, y) = static_cast<float>(scatter.mix(static_cast<double>(out(x, y)), g) / spread.open);
-    }
+    for (int x = 0; x < out.width(); ++x)
+      out(x, y) = spread.simulated(scatter, static_cast<double>(out(x, y)), region.x + x + 0.5,
+                                   region.y + y + 0.5);
   return out;
 }
 

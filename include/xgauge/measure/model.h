@@ -28,6 +28,7 @@
 
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/image/image.h"
+#include "xgauge/image/scatter.h"
 #include "xgauge/material/exponential_sum.h"
 #include "xgauge/material/transmission_table.h"
 #include "xgauge/measure/inputs.h"
@@ -53,6 +54,11 @@ struct ScatterEstimate {
   double open = 1.0;   // (1 - w) + w mean of G(I) over the white region
   // G(I) at a continuous pixel coordinate of the level asked for (bilinear).
   double at(double x, double y) const;
+  // The simulated, normalized value of the pixel centred at (x, y) whose
+  // scatter-free intensity is `intensity`: mix(I, G) / open.
+  float simulated(const ScatterModel& scatter, double intensity, double x, double y) const {
+    return static_cast<float>(scatter.mix(intensity, at(x, y)) / open);
+  }
 };
 
 class ForwardModel {

@@ -37,6 +37,10 @@ void printMaterial(const ExponentialSum& material, const CalibrateArguments& arg
   for (size_t k = 0; k < material.terms().size(); ++k)
     text += fmt::format("{} {:.5f} exp(-{:.5f} x)", k ? " +" : "", material.terms()[k].weight,
                         material.terms()[k].mu_per_mm);
+  text += fmt::format("\nstandard uncertainty of I(x): {:.2g}", material.transmissionUncertainty());
+  if (material.calibratedRange())
+    text += fmt::format(" over the calibrated paths {:.2f} .. {:.2f} mm",
+                        (*material.calibratedRange())[0], (*material.calibratedRange())[1]);
   std::printf("%s\nwrote %s/material.json, calibration.json%s\n", text.c_str(), args.output.c_str(),
               args.report ? ", report.html" : "");
 }
@@ -95,6 +99,10 @@ void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
                   f.report.max_abs_residual, f.report.max_relative_residual,
                   &f == &result.fit.best() ? "  <- chosen" : "");
     std::printf("eq. 3.7: x0 = %.4f mm, x_max = %.4f mm\n", result.x0_mm, result.x_max_mm);
+    std::printf("uncertainty of the curve: %.2g from its table", result.table_uncertainty);
+    for (const CurveInfluence& i : result.influences)
+      std::printf(", %.2g from the %s (u = %.3g)", i.change, i.name.c_str(), i.uncertainty);
+    std::printf("\n");
     writeWedgeCalibration(job, result, truth, wedge.output, wedge.report);
     printMaterial(result.material, wedge);
   } else {

@@ -79,15 +79,42 @@ TEST(CurveFit, PicksTheSmallestNumberOfTermsThatFitsWithinTheNoise) {
     two.push_back(0.7 * std::exp(-0.05 * x.back()) + 0.3 * std::exp(-0.4 * x.back()) + noise(rng));
     step.push_back(x.back() < 10.0 ? 0.9 : 0.2);
   }
-  const CurveFit a = fitCurve(x, one, 4, 1e-4, false, "one");
+  const CurveFit a = fitCurve(x, one, {.max_terms = 4, .noise = 1e-4}, "one");
   EXPECT_EQ(a.best().terms, 1) << a.choice;
   ASSERT_EQ(a.fits.size(), 4u);
-  const CurveFit b = fitCurve(x, two, 4, 1e-4, false, "two");
+  const CurveFit b = fitCurve(x, two, {.max_terms = 4, .noise = 1e-4}, "two");
   EXPECT_EQ(b.best().terms, 2) << b.choice;
   EXPECT_LT(b.best().report.rms_residual, 1.25e-4);
+  // Within the noise, the table shows only the noise carried into the
+  // curve: 1e-4 sqrt(4 / 401) for two terms' four parameters.
+  EXPECT_NEAR(b.tableUncertainty(), 1e-4 * std::sqrt(4.0 / 401.0), 0.2e-5);
   // Not an attenuation curve: the fit cannot converge to it.
-  expectErrorMentioning([&] { fitCurve(x, step, 4, 1e-4, false, "step.tif"); },
+  expectErrorMentioning([&] { fitCurve(x, step, {.max_terms = 4, .noise = 1e-4}, "step.tif"); },
                         "does not converge");
+}
+
+TEST(CurveFit, RatesStayAboveTheFloorAndTheMisfitCountsInTheUncertainty) {
+  // A table that levels off at 0.1, as a detector offset or a wrong white
+  // region makes it: without a floor the fit takes a constant term (rate
+  // ~0), which no material has; with the floor every rate is at least it,
+  // and what the floored curve cannot follow shows as misfit in its
+  // uncertainty.
+  std::vector<double> x, levelling;
+  for (int i = 0; i <= 400; ++i) {
+    x.push_back(0.05 * i);
+    levelling.push_back(0.05 + 0.95 * std::exp(-0.3 * x.back()));
+  }
+  const CurveFit free = fitCurve(x, levelling, {.max_terms = 3, .noise = 1e-4}, "free");
+  EXPECT_LT(free.best().fitted.front().mu_per_mm, 0.01);
+  const double floor = 0.002;
+  const CurveFit floored = fitCurve(
+      x, levelling, {.max_terms = 3, .noise = 1e-4, .rate_floor_per_mm = floor}, "floored");
+  for (const TermsFit& f : floored.fits)
+    for (const ExponentialTerm& t : f.fitted) EXPECT_GE(t.mu_per_mm, floor);
+  EXPECT_GT(floored.best().report.rms_residual, 3e-4)
+      << toJson(floored).dump();  // the floor costs fit
+  EXPECT_NEAR(floored.tableUncertainty(), floored.best().report.rms_residual, 0.2e-4);
+  EXPECT_DOUBLE_EQ(toJson(floored)["rate_floor_per_mm"].get<double>(), floor);
 }
 
 TEST(RampDetection, FindsTheRowsOfASyntheticRampWithinTwoRows) {
@@ -186,9 +213,13 @@ TEST_F(Calibrate, WedgeGivesBackTheMaterialItWasRenderedWith) {
     "machine": "machine.json",
     "radiograph": {"image": "wedge.tif", "white_region": [8, 8, 40, 40]},
     "wedge": {"max_thickness_mm": 20.0, "ramp_length_mm": 90.0},
-    "scatter": {"weight": 0.139, "sigma_mm": 50.0}})";
+    "scatter": {"weight": 0.139, "sigma_mm": 50.0},
+    "rate_floor": {"compound": "Al", "density_g_cm3": 2.699, "tube_kv": 300}})";
   const WedgeCalibrationJob job = WedgeCalibrationJob::load(dir_ / "job.json");
   const WedgeCalibration result = calibrateFromWedge(job);
+  ASSERT_TRUE(job.rate_floor);
+  for (const ExponentialTerm& t : result.material.terms())
+    EXPECT_GE(t.mu_per_mm, job.rate_floor->per_mm);
 
   // The ramp's ends: the back face's edges at part y = 90 (thin) and 0 (thick).
   const double thin = machine.project(pose.apply(Vec3(0, 90, 0))).y();
@@ -204,12 +235,25 @@ TEST_F(Calibrate, WedgeGivesBackTheMaterialItWasRenderedWith) {
                      [&](double x) { return truth.transmission(x); }, 20.0);
   EXPECT_LT(dev.max_abs, 2e-3) << "at " << dev.at_mm << " mm";
   EXPECT_DOUBLE_EQ(result.material.transmission(0.0), 1.0);
+  // The curve's uncertainty: its table and four influences (scatter weight
+  // and width, thickness, ramp length) combined; at k = 2 it covers the
+  // deviation from the truth.
+  ASSERT_EQ(result.influences.size(), 4u);
+  double variance = result.table_uncertainty * result.table_uncertainty;
+  for (const CurveInfluence& i : result.influences) variance += i.change * i.change;
+  EXPECT_DOUBLE_EQ(result.material.transmissionUncertainty(), std::sqrt(variance));
+  EXPECT_LE(dev.max_abs, 2.0 * result.material.transmissionUncertainty());
+  ASSERT_TRUE(result.material.calibratedRange());
+  EXPECT_NEAR((*result.material.calibratedRange())[1], 20.0, 0.5);
+  EXPECT_LT((*result.material.calibratedRange())[0], 1.0);
 
   writeWedgeCalibration(job, result, {}, dir_ / "out");
   EXPECT_TRUE(fs::exists(dir_ / "out" / "material.json"));
   EXPECT_TRUE(fs::exists(dir_ / "out" / "report.html"));
   const ExponentialSum reread = ExponentialSum::load(dir_ / "out" / "material.json");
   EXPECT_EQ(reread.transmission(7.0), result.material.transmission(7.0));
+  EXPECT_EQ(reread.transmissionUncertainty(), result.material.transmissionUncertainty());
+  EXPECT_EQ(reread.calibratedRange(), result.material.calibratedRange());
 
   // An open-beam radiograph: a clear error and no material file.
   writeTiff(dir_ / "wedge.tif", Image(512, 512, 1.0f), TiffFormat::kFloat32);

@@ -1,6 +1,7 @@
 #include "xgauge/calibrate/curve.h"
 
 #include "xgauge/core/error.h"
+#include "xgauge/material/attenuation.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,13 +9,50 @@
 
 namespace xgauge {
 
+RateFloor RateFloor::fromConfig(const ConfigNode& node) {
+  RateFloor out;
+  out.compound = node.get<std::string>("compound");
+  out.density_g_cm3 = node.at("density_g_cm3").number(1e-6, 30.0);
+  out.tube_kv = node.at("tube_kv").number(5.0, 1000.0);
+  try {
+    out.per_mm = attenuationFloorPerMm(out.compound, out.density_g_cm3, out.tube_kv);
+  } catch (const Error& e) {
+    node.at("compound").fail(e.message());
+  }
+  return out;
+}
+
+nlohmann::json RateFloor::toJson() const {
+  return {{"compound", compound},
+          {"density_g_cm3", density_g_cm3},
+          {"tube_kv", tube_kv},
+          {"per_mm", per_mm}};
+}
+
+double CurveFit::tableUncertainty() const {
+  const TermsFit& f = best();
+  const double rms = f.report.rms_residual;
+  // Free parameters: a weight and a rate per term, one weight fewer when
+  // they sum to 1 (no way to tell here; count them all, the larger).
+  const double p = 2.0 * f.report.terms_used;
+  const double statistical =
+      points > 0 ? noise * std::sqrt(std::min(1.0, p / static_cast<double>(points))) : noise;
+  const double misfit = std::sqrt(std::max(0.0, rms * rms - noise * noise));
+  return std::hypot(statistical, misfit);
+}
+
 CurveFit fitCurve(std::span<const double> path_mm, std::span<const double> transmission,
-                  int max_terms, double noise, bool free_amplitude, const std::string& what,
-                  CurveFit* tried) {
+                  const CurveOptions& curve, const std::string& what, CurveFit* tried) {
+  const int max_terms = curve.max_terms;
+  const double noise = curve.noise;
   if (max_terms < 1 || max_terms > 4) fail("{}: max_terms must be 1 to 4, got {}", what, max_terms);
   CurveFit out;
+  out.rate_floor_per_mm = curve.rate_floor_per_mm;
+  out.points = path_mm.size();
+  out.noise = noise;
   ExponentialFitOptions options;
-  options.free_amplitude = free_amplitude;
+  options.free_amplitude = curve.free_amplitude;
+  options.min_mu_per_mm = curve.rate_floor_per_mm;
   options.max_transmission = 2.0;  // measured: noise may lift a value above 1
   for (int m = 1; m <= max_terms; ++m) {
     TermsFit fit;
@@ -77,7 +115,11 @@ nlohmann::json toJson(const CurveFit& fit) {
                     {"weight_sum", sum},
                     {"terms", terms}});
   }
-  return {{"fits", fits}, {"chosen_terms", fit.best().terms}, {"choice", fit.choice}};
+  return {{"fits", fits},
+          {"chosen_terms", fit.best().terms},
+          {"choice", fit.choice},
+          {"rate_floor_per_mm", fit.rate_floor_per_mm},
+          {"table_uncertainty", fit.tableUncertainty()}};
 }
 
 double TrueCurve::operator()(double x) const {
@@ -99,6 +141,12 @@ CurveDeviation curveDeviation(const std::function<double(double)>& a,
     if (d > out.max_abs) out.max_abs = d, out.at_mm = x;
   }
   return out;
+}
+
+double largestDifference(const ExponentialSum& a, const ExponentialSum& b, double max_path_mm) {
+  return curveDeviation([&](double x) { return a.transmission(x); },
+                        [&](double x) { return b.transmission(x); }, max_path_mm)
+      .max_abs;
 }
 
 }  // namespace xgauge

@@ -37,15 +37,20 @@ Table tabulate(ForwardModel& model, const std::vector<double>& theta) {
     std::optional<ScatterEstimate> spread;
     if (scatter.enabled()) spread = model.scatter(theta, r, level);
     auto p = [&](int x, int y) { return static_cast<double>(path(x, y)); };
-    for (int y = 2; y + 2 < roi.height; ++y)
+    // A pixel is smooth when the path is, around it: over its 3 x 3
+    // neighbourhood, or along the row for a one-row (line) detector, whose
+    // rows have no neighbours.
+    const int reach = roi.height >= 5 ? 1 : 0;
+    for (int y = 2 * reach; y + 2 * reach < roi.height; ++y)
       for (int x = 2; x + 2 < roi.width; ++x) {
         bool smooth = p(x, y) > 0.0;
-        for (int j = -1; j <= 1 && smooth; ++j)
+        for (int j = -reach; j <= reach && smooth; ++j)
           for (int i = -1; i <= 1 && smooth; ++i) {
             const int u = x + i, v = y + j;
-            smooth = p(u, v) > 0.0 &&
-                     std::abs(p(u - 1, v) - 2 * p(u, v) + p(u + 1, v)) <= kSmoothPathMm &&
-                     std::abs(p(u, v - 1) - 2 * p(u, v) + p(u, v + 1)) <= kSmoothPathMm;
+            smooth =
+                p(u, v) > 0.0 &&
+                std::abs(p(u - 1, v) - 2 * p(u, v) + p(u + 1, v)) <= kSmoothPathMm &&
+                (reach == 0 || std::abs(p(u, v - 1) - 2 * p(u, v) + p(u, v + 1)) <= kSmoothPathMm);
           }
         if (!smooth) continue;
         double intensity = static_cast<double>(measured(roi.x + x, roi.y + y));
@@ -91,12 +96,6 @@ Table tabulate(ForwardModel& model, const std::vector<double>& theta) {
   return table;
 }
 
-double largestChange(const ExponentialSum& a, const ExponentialSum& b, double max_path_mm) {
-  return curveDeviation([&](double x) { return a.transmission(x); },
-                        [&](double x) { return b.transmission(x); }, max_path_mm)
-      .max_abs;
-}
-
 }  // namespace
 
 PartCalibrationJob PartCalibrationJob::load(const std::filesystem::path& path) {
@@ -122,6 +121,7 @@ PartCalibrationJob PartCalibrationJob::load(const std::filesystem::path& path) {
     initial.at("radiograph").fail(fmt::format("no radiograph named '{}'", name));
   job.initial_region = pixelRectFromConfig(initial.at("region"));
   job.initial_path_mm = initial.at("path_mm").number(1e-3, 1e4);
+  if (auto floor = c.find("rate_floor")) job.rate_floor = RateFloor::fromConfig(*floor);
   root.finish();
   return job;
 }
@@ -136,6 +136,12 @@ void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out) {
   const auto start = std::chrono::steady_clock::now();
   out = PartCalibration{};
   out.step = "the initial material (thesis eq. 3.8)";
+  const CurveOptions curve{.max_terms = job.terms,
+                           .rate_floor_per_mm = job.rate_floor ? job.rate_floor->per_mm : 0.0};
+  if (!job.rate_floor)
+    spdlog::warn(
+        "no calibration.rate_floor: the curve's rates are not bounded by the material's "
+        "attenuation at the tube voltage, and it may level off beyond the calibrated paths");
 
   // 1. Eq. 3.8 from the uniform region.
   const RadiographSpec& spec =
@@ -176,7 +182,9 @@ void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out) {
     const Table table = tabulate(model, theta);
     out.path_mm = table.path_mm, out.transmission = table.transmission;
     out.step = fmt::format("round {}: fit the curve", round + 1);
-    const CurveFit fit = fitCurve(table.path_mm, table.transmission, job.terms, table.noise, false,
+    CurveOptions round_curve = curve;
+    round_curve.noise = table.noise;
+    const CurveFit fit = fitCurve(table.path_mm, table.transmission, round_curve,
                                   "calibration round " + std::to_string(round + 1), &out.fit);
     const TermsFit& asked = fit.fits.back();  // the job's number of terms
     PartCalibrationRound r;
@@ -186,7 +194,7 @@ void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out) {
       // The joint fit starts from the table's fit.
       const ExponentialSum tabulated(asked.fitted, "fitted to the registered pixels");
       model.setMaterial(tabulated);
-      model.freeMaterial(tabulated, theta);
+      model.freeMaterial(tabulated, theta, curve.rate_floor_per_mm);
     }
     MeasureOptions options;
     options.search_poses = false;
@@ -200,7 +208,7 @@ void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out) {
                                 fmt::format("calibrated from the known part in {} (round {})",
                                             job.measurement().file.filename().string(), round + 1));
     r.pose_loss = out.measurement.total_loss;
-    r.change = largestChange(material, r.material, table.path_mm.back());
+    r.change = largestDifference(material, r.material, table.path_mm.back());
     spdlog::info(
         "round {}: {} pixels in {} bins up to {:.2f} mm, {}-term fit rms {:.3g} (noise {:.3g}); "
         "after the joint fit the material changed by {:.5f}",
@@ -218,8 +226,9 @@ void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out) {
   const Table table = tabulate(model, theta);
   out.path_mm = table.path_mm, out.transmission = table.transmission;
   out.step = "fit the final curve";
-  out.fit = fitCurve(table.path_mm, table.transmission, job.terms, table.noise, false,
-                     "final calibration", &out.fit);
+  CurveOptions final_curve = curve;
+  final_curve.noise = table.noise;
+  out.fit = fitCurve(table.path_mm, table.transmission, final_curve, "final calibration", &out.fit);
   out.max_path_mm = table.path_mm.back();
   out.material = ExponentialSum(
       out.fit.best().fitted,
@@ -227,6 +236,8 @@ void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out) {
                   "path bins up to {:.2f} mm at the jointly fitted poses",
                   job.measurement().file.filename().string(), out.fit.best().report.terms_used,
                   table.pixels, table.path_mm.size(), out.max_path_mm));
+  out.material.setTransmissionUncertainty(out.fit.tableUncertainty());
+  out.material.setCalibratedRange(std::array<double, 2>{table.path_mm.front(), out.max_path_mm});
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   out.step = "done";
 }

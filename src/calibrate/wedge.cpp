@@ -14,99 +14,32 @@
 
 namespace xgauge {
 
-WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path) {
-  const ConfigNode root = ConfigNode::loadFile(path);
-  const auto folder = path.parent_path();
-  WedgeCalibrationJob job;
-  job.file = path;
-  job.description = root.get<std::string>("description", "");
-  job.machine_file = folder / root.get<std::string>("machine");
-  const ConfigNode r = root.at("radiograph");
-  job.radiograph.name = "wedge";
-  job.radiograph.image = folder / r.get<std::string>("image");
-  if (r.has("dark") != r.has("flat")) r.fail("give both dark and flat, or neither");
-  if (r.has("dark")) {
-    job.radiograph.dark = folder / r.get<std::string>("dark");
-    job.radiograph.flat = folder / r.get<std::string>("flat");
-  }
-  job.radiograph.white_region = pixelRectFromConfig(r.at("white_region"));
-  const ConfigNode wedge = root.at("wedge");
-  job.max_thickness_mm = wedge.at("max_thickness_mm").number(0.01, 1e4);
-  job.ramp_length_mm = wedge.at("ramp_length_mm").number(0.1, 1e5);
-  if (auto scatter = root.find("scatter")) job.scatter = ScatterModel::fromConfig(*scatter);
-  if (auto ramp = root.find("ramp")) {
-    if (auto columns = ramp->find("columns")) {
-      if (columns->size() != 2) columns->fail("expected [begin, end]");
-      job.ramp.columns = std::array<int, 2>{static_cast<int>((*columns)[0].integer(0, 1000000)),
-                                            static_cast<int>((*columns)[1].integer(0, 1000000))};
-    }
-    if (auto rows = ramp->find("rows")) {
-      if (rows->size() != 2) rows->fail("expected [thin end, thick end]");
-      job.ramp.rows = std::array<double, 2>{(*rows)[0].number(0, 1e6), (*rows)[1].number(0, 1e6)};
-    }
-  }
-  job.max_terms = static_cast<int>(root.get<double>("max_terms", 4.0));
-  if (job.max_terms < 1 || job.max_terms > 4) root.at("max_terms").fail("expected 1 to 4");
-  job.margin_rows = static_cast<int>(root.get<double>("margin_rows", 4.0));
-  if (job.margin_rows < 0 || job.margin_rows > 1000)
-    root.at("margin_rows").fail("expected 0 to 1000");
-  root.finish();
-  job.machine = Machine::load(job.machine_file);
-  return job;
-}
+namespace {
 
-WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
-  WedgeCalibration out;
-  calibrateFromWedge(job, out);
-  return out;
-}
-
-void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
-  const auto start = std::chrono::steady_clock::now();
+// Steps 3 to 6 on an image with the scatter taken out and its ramp found:
+// the geometry, the table and the curve, for the wedge's `thickness_mm` and
+// `ramp_length_mm` (the job's, or shifted by their uncertainties to
+// propagate them). Fills `out` as far as it gets.
+void curveFromRamp(const WedgeCalibrationJob& job, const Image& image, const RampDetection& ramp,
+                   double thickness_mm, double ramp_length_mm, WedgeCalibration& out) {
   const Machine& machine = job.machine;
   const std::string name = job.radiograph.image.string();
-  out = WedgeCalibration{};
-  out.step = "normalize the radiograph";
-
-  // 1. Normalize (the whole image: the ramp finder below looks for the wedge
-  // itself, and says so clearly when there is none); remove the scatter.
-  const RadiographSpec& spec = job.radiograph;
-  std::optional<Image> dark, flat;
-  if (!spec.dark.empty()) dark = readTiff(spec.dark), flat = readTiff(spec.flat);
-  Image raw = readTiff(spec.image);
-  if (raw.width() != machine.columns || raw.height() != machine.rows)
-    fail("{} is {}x{} pixels but the machine's detector is {}x{}", name, raw.width(),
-         raw.height(), machine.columns, machine.rows);
-  Image image = normalizeRadiograph(std::move(raw), {dark ? &*dark : nullptr, flat ? &*flat : nullptr},
-                                    spec.white_region, ClampPolicy::kNone, name)
-                    .image;
-  if (job.scatter.enabled()) image = job.scatter.remove(image, machine.pitch_u_mm, spec.white_region);
-  out.normalized = image;
-
-  // 2. The ramp.
-  out.step = "find the ramp";
-  out.ramp = detectRamp(image, job.ramp, name);
-  out.ramp_found = true;
-  const RampDetection& ramp = out.ramp;
-  spdlog::debug("{}: ramp in columns {}..{}, thin end at row {:.2f}, thick end at row {:.2f}{}",
-                name, ramp.column_begin, ramp.column_end - 1, ramp.thin_row, ramp.thick_row,
-                ramp.automatic_rows ? " (found)" : " (given)");
-
+  out.rows.clear(), out.path_mm.clear(), out.transmission.clear();
   // 3. Geometry: both ends on the back face.
   out.step = "the wedge's geometry";
   const double d = machine.source_detector_distance_mm;
   const double y_thin_det = (machine.cy_px - ramp.thin_row) * machine.pitch_v_mm;
   const double y_thick_det = (machine.cy_px - ramp.thick_row) * machine.pitch_v_mm;
-  out.magnification = std::abs(y_thin_det - y_thick_det) / job.ramp_length_mm;
+  out.magnification = std::abs(y_thin_det - y_thick_det) / ramp_length_mm;
   if (!(out.magnification > 1.0))
     fail(
         "{}: the ramp spans {:.1f} rows, {:.2f} mm on the detector, less than its length of {} mm: "
         "check ramp_length_mm and the machine's pixel pitch",
         name, std::abs(ramp.thick_row - ramp.thin_row), std::abs(y_thin_det - y_thick_det),
-        job.ramp_length_mm);
+        ramp_length_mm);
   out.back_face_z_mm = d * (1.0 - 1.0 / out.magnification);
   const double y_thin = y_thin_det / out.magnification, y_thick = y_thick_det / out.magnification;
-  const double t = job.max_thickness_mm, delta = y_thick - y_thin;
+  const double t = thickness_mm, delta = y_thick - y_thin;
   const double lambda_back = 1.0 - out.back_face_z_mm / d;
   auto path = [&](double u, double v) {  // continuous pixel coordinate
     const Vec3 p = machine.detectorPoint(u, v);
@@ -146,9 +79,20 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
 
   // 5-6. Fit, then eq. 3.7.
   out.step = "fit the curve";
-  out.fit = fitCurve(out.path_mm, out.transmission, job.max_terms, ramp.row_noise, true, name,
-                     &out.fit);
+  const CurveOptions curve{.max_terms = job.max_terms,
+                           .noise = ramp.row_noise,
+                           .free_amplitude = true,
+                           .rate_floor_per_mm = job.rate_floor ? job.rate_floor->per_mm : 0.0};
+  out.fit = fitCurve(out.path_mm, out.transmission, curve, name, &out.fit);
   out.material = shiftAndScale(out.fit.best().fitted, out.x_max_mm, &out.x0_mm);
+  if (curve.rate_floor_per_mm > 0.0) {
+    // Eq. 3.7 scales the rates by (x_max - x0) / x_max, below 1 when the thin
+    // end looked thinner than 0 mm (x0 > 0): keep them on the floor.
+    std::vector<ExponentialTerm> terms = out.material.terms();
+    for (ExponentialTerm& term : terms)
+      term.mu_per_mm = std::max(term.mu_per_mm, curve.rate_floor_per_mm);
+    out.material = ExponentialSum(std::move(terms));
+  }
   out.material = ExponentialSum(
       out.material.terms(),
       fmt::format(
@@ -156,6 +100,142 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
           "by thesis eq. 3.7 (x0 = {:.4f} mm, x_max = {:.4f} mm)",
           job.radiograph.image.filename().string(), out.fit.best().report.terms_used,
           out.rows.size(), out.x0_mm, out.x_max_mm));
+}
+
+}  // namespace
+
+WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path) {
+  const ConfigNode root = ConfigNode::loadFile(path);
+  const auto folder = path.parent_path();
+  WedgeCalibrationJob job;
+  job.file = path;
+  job.description = root.get<std::string>("description", "");
+  job.machine_file = folder / root.get<std::string>("machine");
+  const ConfigNode r = root.at("radiograph");
+  job.radiograph.name = "wedge";
+  job.radiograph.image = folder / r.get<std::string>("image");
+  if (r.has("dark") != r.has("flat")) r.fail("give both dark and flat, or neither");
+  if (r.has("dark")) {
+    job.radiograph.dark = folder / r.get<std::string>("dark");
+    job.radiograph.flat = folder / r.get<std::string>("flat");
+  }
+  job.radiograph.white_region = pixelRectFromConfig(r.at("white_region"));
+  const ConfigNode wedge = root.at("wedge");
+  job.max_thickness_mm = wedge.at("max_thickness_mm").number(0.01, 1e4);
+  job.ramp_length_mm = wedge.at("ramp_length_mm").number(0.1, 1e5);
+  if (auto u = wedge.find("max_thickness_uncertainty_mm"))
+    job.max_thickness_uncertainty_mm = u->number(0.0, 10.0);
+  if (auto u = wedge.find("ramp_length_uncertainty_mm"))
+    job.ramp_length_uncertainty_mm = u->number(0.0, 10.0);
+  if (auto floor = root.find("rate_floor")) job.rate_floor = RateFloor::fromConfig(*floor);
+  if (auto scatter = root.find("scatter")) job.scatter = ScatterModel::fromConfig(*scatter);
+  if (auto ramp = root.find("ramp")) {
+    if (auto columns = ramp->find("columns")) {
+      if (columns->size() != 2) columns->fail("expected [begin, end]");
+      job.ramp.columns = std::array<int, 2>{static_cast<int>((*columns)[0].integer(0, 1000000)),
+                                            static_cast<int>((*columns)[1].integer(0, 1000000))};
+    }
+    if (auto rows = ramp->find("rows")) {
+      if (rows->size() != 2) rows->fail("expected [thin end, thick end]");
+      job.ramp.rows = std::array<double, 2>{(*rows)[0].number(0, 1e6), (*rows)[1].number(0, 1e6)};
+    }
+  }
+  job.max_terms = static_cast<int>(root.get<double>("max_terms", 4.0));
+  if (job.max_terms < 1 || job.max_terms > 4) root.at("max_terms").fail("expected 1 to 4");
+  job.margin_rows = static_cast<int>(root.get<double>("margin_rows", 4.0));
+  if (job.margin_rows < 0 || job.margin_rows > 1000)
+    root.at("margin_rows").fail("expected 0 to 1000");
+  root.finish();
+  job.machine = Machine::load(job.machine_file);
+  return job;
+}
+
+WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
+  WedgeCalibration out;
+  calibrateFromWedge(job, out);
+  return out;
+}
+
+void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
+  const auto start = std::chrono::steady_clock::now();
+  const Machine& machine = job.machine;
+  const std::string name = job.radiograph.image.string();
+  out = WedgeCalibration{};
+  out.step = "normalize the radiograph";
+  if (!job.rate_floor)
+    spdlog::warn(
+        "{}: no rate_floor: the curve's rates are not bounded by the material's attenuation at "
+        "the tube voltage, and it may level off beyond the wedge's thickness",
+        job.file.string());
+
+  // 1. Normalize (the whole image: the ramp finder below looks for the wedge
+  // itself, and says so clearly when there is none); remove the scatter.
+  const RadiographSpec& spec = job.radiograph;
+  std::optional<Image> dark, flat;
+  if (!spec.dark.empty()) dark = readTiff(spec.dark), flat = readTiff(spec.flat);
+  Image raw = readTiff(spec.image);
+  if (raw.width() != machine.columns || raw.height() != machine.rows)
+    fail("{} is {}x{} pixels but the machine's detector is {}x{}", name, raw.width(), raw.height(),
+         machine.columns, machine.rows);
+  const Image normalized =
+      normalizeRadiograph(std::move(raw), {dark ? &*dark : nullptr, flat ? &*flat : nullptr},
+                          spec.white_region, ClampPolicy::kNone, name)
+          .image;
+  Image image = normalized;
+  if (job.scatter.enabled())
+    image = job.scatter.remove(image, machine.pitch_u_mm, spec.white_region);
+  out.normalized = image;
+
+  // 2. The ramp.
+  out.step = "find the ramp";
+  out.ramp = detectRamp(image, job.ramp, name);
+  out.ramp_found = true;
+  const RampDetection& ramp = out.ramp;
+  spdlog::debug("{}: ramp in columns {}..{}, thin end at row {:.2f}, thick end at row {:.2f}{}",
+                name, ramp.column_begin, ramp.column_end - 1, ramp.thin_row, ramp.thick_row,
+                ramp.automatic_rows ? " (found)" : " (given)");
+
+  curveFromRamp(job, image, ramp, job.max_thickness_mm, job.ramp_length_mm, out);
+  out.table_uncertainty = out.fit.tableUncertainty();
+
+  // 7. What the table cannot show: the curve's change when the scatter's
+  // weight and width and the wedge's dimensions move by their standard
+  // uncertainties (GUM, sensitivity by re-solving), combined with the
+  // table's own.
+  out.step = "the curve's uncertainty";
+  const ExponentialSum material = out.material;
+  const double range = out.x_max_mm;
+  auto propagate = [&](const std::string& influence, double value, double u,
+                       const Image& shifted_image, double thickness, double length) {
+    if (!(u > 0.0)) return;
+    WedgeCalibration moved;
+    curveFromRamp(job, shifted_image, ramp, thickness, length, moved);
+    out.influences.push_back(
+        {influence, value, u, largestDifference(material, moved.material, range)});
+  };
+  if (job.scatter.enabled()) {
+    ScatterModel w = job.scatter, s = job.scatter;
+    w.weight += job.scatter.weight_uncertainty;
+    s.sigma_mm += job.scatter.sigma_uncertainty_mm;
+    propagate("scatter weight", job.scatter.weight, job.scatter.weight_uncertainty,
+              w.remove(normalized, machine.pitch_u_mm, spec.white_region), job.max_thickness_mm,
+              job.ramp_length_mm);
+    propagate("scatter sigma_mm", job.scatter.sigma_mm, job.scatter.sigma_uncertainty_mm,
+              s.remove(normalized, machine.pitch_u_mm, spec.white_region), job.max_thickness_mm,
+              job.ramp_length_mm);
+  }
+  propagate("wedge max_thickness_mm", job.max_thickness_mm, job.max_thickness_uncertainty_mm, image,
+            job.max_thickness_mm + job.max_thickness_uncertainty_mm, job.ramp_length_mm);
+  propagate("wedge ramp_length_mm", job.ramp_length_mm, job.ramp_length_uncertainty_mm, image,
+            job.max_thickness_mm, job.ramp_length_mm + job.ramp_length_uncertainty_mm);
+  double variance = out.table_uncertainty * out.table_uncertainty;
+  for (const CurveInfluence& influence : out.influences)
+    variance += influence.change * influence.change;
+  out.material.setTransmissionUncertainty(std::sqrt(variance));
+  // The table's first row, on the curve's path axis after eq. 3.7.
+  const double first =
+      (out.path_mm.front() - out.x0_mm) * out.x_max_mm / (out.x_max_mm - out.x0_mm);
+  out.material.setCalibratedRange(std::array<double, 2>{std::max(0.0, first), out.x_max_mm});
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   out.step = "done";
 }

@@ -4,6 +4,7 @@
 
 #include <xraylib.h>
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -28,6 +29,15 @@ double linearAttenuationPerMm(const std::string& compound, double density_g_cm3,
     fail("density of '{}' must be positive, got {} g/cm^3", compound, density_g_cm3);
   // cm^2/g * g/cm^3 = 1/cm = 0.1/mm.
   return massAttenuationCm2PerG(compound, energy_kev) * density_g_cm3 * 0.1;
+}
+
+double attenuationFloorPerMm(const std::string& compound, double density_g_cm3, double tube_kv) {
+  if (!(tube_kv >= 5.0 && tube_kv <= 1000.0))
+    fail("tube voltage must be 5 to 1000 kV, got {}", tube_kv);
+  double floor = linearAttenuationPerMm(compound, density_g_cm3, tube_kv);
+  for (double e = 1.0; e < tube_kv; e += 0.5)
+    floor = std::min(floor, linearAttenuationPerMm(compound, density_g_cm3, e));
+  return floor;
 }
 
 }  // namespace xgauge

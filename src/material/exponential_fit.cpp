@@ -176,6 +176,8 @@ void ExponentialFitOptions::validate() const {
     fail("unknown exponential-fit weighting {}", static_cast<int>(weighting));
   if (!(max_transmission >= 1.0 && max_transmission <= 10.0))
     fail("max_transmission must be in [1, 10], got {}", max_transmission);
+  if (!(min_mu_per_mm >= 0.0 && std::isfinite(min_mu_per_mm)))
+    fail("min_mu_per_mm must be finite and >= 0, got {}", min_mu_per_mm);
   if (max_evaluations_per_start < 100)
     fail("max_evaluations_per_start must be >= 100, got {}", max_evaluations_per_start);
 }
@@ -203,8 +205,9 @@ std::vector<ExponentialTerm> fitExponentialTerms(std::span<const double> path_mm
   double min_spacing = std::numeric_limits<double>::infinity();
   for (size_t i = 1; i < n; ++i) min_spacing = std::min(min_spacing, path_mm[i] - path_mm[i - 1]);
   const double max_path = path_mm[n - 1];
-  const double log_mu_min = std::log(1e-9 / max_path);
-  const double log_mu_max = std::log(50.0 / min_spacing);
+  const bool floored = options.min_mu_per_mm > 0.0;
+  const double log_mu_min = floored ? std::log(options.min_mu_per_mm) : std::log(1e-9 / max_path);
+  const double log_mu_max = std::max(std::log(50.0 / min_spacing), log_mu_min + 1.0);
 
   // Track the best point over every evaluation of every search.
   std::vector<double> best_log_mu;
@@ -257,6 +260,10 @@ std::vector<ExponentialTerm> fitExponentialTerms(std::span<const double> path_mm
   const double rate_floor = 1e-4 / span;
   if (!(rate_high > rate_floor)) rate_high = 1.0 / span;
   rate_low = std::clamp(rate_low, rate_floor, rate_high);
+  if (floored) {  // start above the floor, not piled on it
+    rate_low = std::max(rate_low, options.min_mu_per_mm);
+    rate_high = std::max(rate_high, 3.0 * rate_low);
+  }
   struct Start {
     double spread, shift;
   };
@@ -279,11 +286,13 @@ std::vector<ExponentialTerm> fitExponentialTerms(std::span<const double> path_mm
   // Polish: restart from the best point with a small trust region.
   localSearch(best_log_mu, 0.05);
 
-  // Rates at the lower bound are constant over the data: make them exactly 0
-  // and refit the weights for the rates returned.
+  // Without a floor, rates at the lower bound are constant over the data:
+  // make them exactly 0. With one, rates at it are the floor itself. Refit
+  // the weights for the rates returned.
   std::vector<double> final_mu(m);
   for (size_t k = 0; k < m; ++k)
-    final_mu[k] = best_log_mu[k] <= log_mu_min ? 0.0 : std::exp(best_log_mu[k]);
+    final_mu[k] = best_log_mu[k] <= log_mu_min ? (floored ? options.min_mu_per_mm : 0.0)
+                                               : std::exp(best_log_mu[k]);
   problem.solve(final_mu, weights);
 
   // Drop terms with zero weight, merge equal rates, sort by rate.

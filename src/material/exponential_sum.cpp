@@ -28,6 +28,14 @@ ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
   const std::string description = node.get<std::string>("description", "");
   double uncertainty = kDefaultTransmissionUncertainty;
   if (auto u = node.find("uncertainty")) uncertainty = u->at("transmission").number(0.0, 0.5);
+  std::optional<std::array<double, 2>> range;
+  if (auto r = node.find("calibrated_range_mm")) {
+    if (r->size() != 2) r->fail("calibrated_range_mm: expected [low, high] in mm");
+    range = std::array<double, 2>{(*r)[0].number(0.0, 1e5), (*r)[1].number(0.0, 1e5)};
+    if (!((*range)[0] < (*range)[1]))
+      r->fail(fmt::format("calibrated_range_mm: low ({}) must be below high ({})", (*range)[0],
+                          (*range)[1]));
+  }
   try {
     if (model == "exponential_sum") {
       const ConfigNode list = node.at("terms");
@@ -40,10 +48,12 @@ ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
       // rate 0, a measurement would return its start values unchanged.
       if (std::all_of(terms.begin(), terms.end(),
                       [](const ExponentialTerm& t) { return t.mu_per_mm == 0.0; }))
-        list.fail("every mu_per_mm is 0: the material would not attenuate, and no dimension "
-                  "could be measured");
+        list.fail(
+            "every mu_per_mm is 0: the material would not attenuate, and no dimension "
+            "could be measured");
       ExponentialSum out(std::move(terms), description);
       out.transmission_uncertainty_ = uncertainty;
+      out.calibrated_range_ = range;
       return out;
     }
     if (model == "monochromatic") {
@@ -55,6 +65,7 @@ ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
                              ? fmt::format("{} ({} g/cm^3) at {} keV", compound, density, energy)
                              : description);
       out.transmission_uncertainty_ = uncertainty;
+      out.calibrated_range_ = range;
       return out;
     }
   } catch (const Error& e) {
@@ -78,6 +89,7 @@ nlohmann::json ExponentialSum::toJson() const {
   nlohmann::json out = {{"model", "exponential_sum"}, {"terms", terms}};
   if (!description_.empty()) out["description"] = description_;
   out["uncertainty"] = {{"transmission", transmission_uncertainty_}};
+  if (calibrated_range_) out["calibrated_range_mm"] = *calibrated_range_;
   return out;
 }
 
@@ -98,6 +110,7 @@ ExponentialSum ExponentialSum::withScaledRates(double relative) const {
   for (auto& t : terms) t.mu_per_mm *= 1.0 + relative;
   ExponentialSum out(std::move(terms), description_);
   out.transmission_uncertainty_ = transmission_uncertainty_;
+  out.calibrated_range_ = calibrated_range_;
   return out;
 }
 

@@ -1,8 +1,11 @@
+#include "core/expect_error.h"
 #include "xgauge/material/attenuation.h"
 #include "xgauge/material/exponential_sum.h"
 #include "xgauge/material/transmission_table.h"
 
 #include <gtest/gtest.h>
+
+#include <fmt/format.h>
 
 #include <cmath>
 
@@ -59,6 +62,44 @@ TEST(Attenuation, AluminiumFromXraylib) {
   EXPECT_NEAR(linearAttenuationPerMm("Al", 2.699, 100.0), 0.1704 * 2.699 * 0.1, 0.001);
   EXPECT_THROW(massAttenuationCm2PerG("Xx", 100.0), Error);
   EXPECT_THROW(linearAttenuationPerMm("Al", -1.0, 100.0), Error);
+}
+
+TEST(Attenuation, FloorIsTheLeastAttenuationOfTheSpectrum) {
+  // Aluminium falls monotonically with energy up to well beyond 300 keV: its
+  // floor is its attenuation at the tube voltage.
+  EXPECT_DOUBLE_EQ(attenuationFloorPerMm("Al", 2.699, 220.0),
+                   linearAttenuationPerMm("Al", 2.699, 220.0));
+  // Lead's K edge (88.0 keV) lies inside a 100 kV spectrum: just below it
+  // lead attenuates less than at 100 keV (NIST XCOM: 1.9 against 5.5
+  // cm^2/g), so the floor is there, not at the tube voltage.
+  const double at_kv = linearAttenuationPerMm("Pb", 11.35, 100.0);
+  const double floor = attenuationFloorPerMm("Pb", 11.35, 100.0);
+  EXPECT_LT(floor, 0.5 * at_kv);
+  EXPECT_NEAR(floor, linearAttenuationPerMm("Pb", 11.35, 87.5), 0.1 * floor);
+  EXPECT_THROW(attenuationFloorPerMm("Al", 2.699, 2.0), Error);
+  EXPECT_THROW(attenuationFloorPerMm("Al", 2.699, NAN), Error);
+}
+
+TEST(ExponentialSum, CalibratedRangeRoundTrips) {
+  auto root = ConfigNode::parse(
+      R"({"model": "exponential_sum", "terms": [{"weight": 1, "mu_per_mm": 0.1}],
+          "calibrated_range_mm": [0.3, 19.5]})",
+      "al.json");
+  const auto m = ExponentialSum::fromConfig(root);
+  EXPECT_NO_THROW(root.finish());
+  ASSERT_TRUE(m.calibratedRange());
+  EXPECT_EQ((*m.calibratedRange())[1], 19.5);
+  const auto back = ConfigNode::parse(m.toJson().dump(), "back.json");
+  EXPECT_EQ(ExponentialSum::fromConfig(back).calibratedRange(), m.calibratedRange());
+  // A range must be [low, high] with 0 <= low < high.
+  for (const char* range : {"[5, 1]", "[-1, 3]", "[1]", "[0, \"a\"]"}) {
+    auto bad = ConfigNode::parse(
+        fmt::format(R"({{"model": "exponential_sum", "terms": [{{"weight": 1, "mu_per_mm": 0.1}}],
+                        "calibrated_range_mm": {}}})",
+                    range),
+        "bad.json");
+    expectErrorMentioning([&] { ExponentialSum::fromConfig(bad); }, "calibrated_range_mm");
+  }
 }
 
 TEST(ExponentialSum, MonochromaticFromConfig) {

@@ -87,6 +87,7 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
   const Machine& machine = model.machine();
   const Vec3 source = machine.sourceWorld();
   const TriangleMesh mesh = model.part().mesh(theta.first(model.part().dimensions().size()));
+  const std::optional<std::array<double, 2>> calibrated = model.materialOf(theta).calibratedRange();
   for (const ResidualSegment& segment : fit.segments) {
     const int r = segment.radiograph;
     const RadiographSpec& spec = model.spec(r);
@@ -120,6 +121,17 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
           "of its open beam explains ({:.3g}): the part, the material, the scatter or the "
           "machine may differ from their models, or a dimension is held at a wrong value",
           spec.name, rc.rms_residual, rc.misfit_ratio, rc.noise_sigma));
+    // Paths beyond the material's calibrated range: there the curve is
+    // extrapolated.
+    const Image paths = model.pathLengths(theta, r, level, roi);
+    for (int y = 0; y < roi.height; ++y)
+      for (int x = 0; x < roi.width; ++x)
+        rc.longest_path_mm = std::max(rc.longest_path_mm, static_cast<double>(paths(x, y)));
+    if (calibrated && rc.longest_path_mm > (*calibrated)[1] * (1.0 + kBeyondRange))
+      check.warnings.push_back(fmt::format(
+          "{}: the part has paths up to {:.2f} mm, beyond the {:.2f} mm the material was "
+          "calibrated to: the curve is extrapolated there; calibrate over longer paths",
+          spec.name, rc.longest_path_mm, (*calibrated)[1]));
     check.radiographs.push_back(rc);
 
     // Residual regions.

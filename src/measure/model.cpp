@@ -147,7 +147,8 @@ void ForwardModel::setMaterial(const ExponentialSum& material) {
   transmission_ = TransmissionTable::forMaterial(material, max_path_mm_);
 }
 
-void ForwardModel::freeMaterial(const ExponentialSum& material, std::vector<double>& theta) {
+void ForwardModel::freeMaterial(const ExponentialSum& material, std::vector<double>& theta,
+                                double rate_floor_per_mm) {
   XG_CHECK(material_terms_ == 0, "the material is free already");
   XG_CHECK(theta.size() == static_cast<size_t>(size()), "theta has the wrong size");
   const auto& terms = material.terms();
@@ -163,8 +164,9 @@ void ForwardModel::freeMaterial(const ExponentialSum& material, std::vector<doub
   }
   for (size_t k = 0; k < m; ++k) {
     names.push_back(fmt::format("rate{}", k + 1));
-    lower.push_back(0.0), upper.push_back(10.0);
-    start.push_back(std::clamp(terms[k].mu_per_mm, 0.0, 10.0));
+    const double low = std::min(rate_floor_per_mm, 10.0);
+    lower.push_back(low), upper.push_back(10.0);
+    start.push_back(std::clamp(terms[k].mu_per_mm, low, 10.0));
   }
   layout_.add("material", ParameterKind::kMaterial, names, lower, upper, start);
   theta.insert(theta.end(), start.begin(), start.end());

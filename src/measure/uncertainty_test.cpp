@@ -358,5 +358,24 @@ TEST_F(Uncertainty, AParameterAtItsBoundAndAPoorFitAreWarnedAbout) {
   for (const auto& w : measureScene(inside).check.warnings) ADD_FAILURE() << "unexpected: " << w;
 }
 
+TEST_F(Uncertainty, PathsBeyondTheMaterialsCalibratedRangeAreWarnedAbout) {
+  // The cuboid (20.6 x 29.4 x 10.3 mm) has paths from 10.3 mm (face on) up
+  // to its diagonal; a material calibrated to 5 mm is extrapolated over all
+  // of them, one calibrated to 100 mm over none.
+  Scene scene;
+  scene.material.setCalibratedRange(std::array<double, 2>{0.0, 100.0});
+  const MeasurementResult wide = measureScene(scene);
+  for (const auto& w : wide.check.warnings) ADD_FAILURE() << "unexpected: " << w;
+  for (const RadiographCheck& c : wide.check.radiographs) {
+    EXPECT_GT(c.longest_path_mm, 10.3) << c.name;
+    EXPECT_LT(c.longest_path_mm, std::sqrt(20.6 * 20.6 + 29.4 * 29.4 + 10.3 * 10.3)) << c.name;
+  }
+  scene.material.setCalibratedRange(std::array<double, 2>{0.0, 5.0});
+  int beyond = 0;
+  for (const auto& w : measureScene(scene).check.warnings)
+    beyond += w.find("beyond the 5.00 mm the material was calibrated to") != std::string::npos;
+  EXPECT_EQ(beyond, 2);  // one per radiograph
+}
+
 }  // namespace
 }  // namespace xgauge

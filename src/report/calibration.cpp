@@ -31,7 +31,8 @@ void writeCalibrationOutputs(const std::filesystem::path& folder, const Exponent
                          : std::sqrt(sum_squares / static_cast<double>(data.path_mm.size()));
   figures["material_vs_data"] = {
       {"rms_residual", rms}, {"max_abs_residual", worst}, {"points", data.path_mm.size()}};
-  figures["calibrated_range_mm"] = {0.0, data.x_max_mm};
+  const auto range = material.calibratedRange().value_or(std::array<double, 2>{0.0, data.x_max_mm});
+  figures["calibrated_range_mm"] = {range[0], range[1]};
   nlohmann::json true_json = nullptr;
   if (!true_curve.empty()) {
     const CurveDeviation dev = curveDeviation(fitted, true_curve, data.x_max_mm);
@@ -187,6 +188,25 @@ void writeFailedPartCalibration(const PartCalibrationJob& job, const PartCalibra
                partial.fit, nullptr, html_report);
 }
 
+namespace {
+
+// The curve's uncertainty budget (wedge.h, step 7).
+nlohmann::json wedgeUncertaintyJson(const WedgeCalibrationJob& job,
+                                    const WedgeCalibration& result) {
+  nlohmann::json influences = nlohmann::json::array();
+  for (const CurveInfluence& i : result.influences)
+    influences.push_back({{"name", i.name},
+                          {"value", i.value},
+                          {"standard_uncertainty", i.uncertainty},
+                          {"curve_change", i.change}});
+  return {{"transmission", result.material.transmissionUncertainty()},
+          {"table", result.table_uncertainty},
+          {"influences", influences},
+          {"rate_floor", job.rate_floor ? job.rate_floor->toJson() : nlohmann::json(nullptr)}};
+}
+
+}  // namespace
+
 void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& result,
                            const TrueCurve& true_curve, const std::filesystem::path& folder,
                            bool html_report) {
@@ -207,6 +227,7 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
                               {"ramp_length_mm", job.ramp_length_mm}}},
                             {"fit", toJson(result.fit)},
                             {"eq_3_7", {{"x0_mm", result.x0_mm}, {"x_max_mm", result.x_max_mm}}},
+                            {"uncertainty", wedgeUncertaintyJson(job, result)},
                             {"material", result.material.toJson()},
                             {"table",
                              {{"row", result.rows},

@@ -103,7 +103,8 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                     {"noise_sigma", c.noise_sigma},
                     {"mean_abs_residual", c.mean_abs_residual},
                     {"rms_residual", c.rms_residual},
-                    {"misfit_ratio", c.misfit_ratio}});
+                    {"misfit_ratio", c.misfit_ratio},
+                    {"longest_path_mm", c.longest_path_mm}});
   bool toleranced = false;
   for (const auto& d : result.dimensions) toleranced |= d.decision.has_value();
   nlohmann::json radiographs = nlohmann::json::array();

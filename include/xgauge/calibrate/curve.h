@@ -4,6 +4,7 @@
 // show the work (thesis Figure 5.8, docs/method.md: data, fitted curve, residual).
 #pragma once
 
+#include "xgauge/core/config.h"
 #include "xgauge/material/exponential_fit.h"
 
 #include <nlohmann/json.hpp>
@@ -22,17 +23,50 @@ struct TermsFit {
   ExponentialFitReport report;
 };
 
+// The least attenuation a physical curve can have (docs/method.md,
+// "Physically sound curves"): the material's attenuation over the tube's
+// spectrum at its weakest (attenuationFloorPerMm). Calibration job key
+// "rate_floor": {"compound": formula or NIST name (xraylib),
+// "density_g_cm3": rho, "tube_kv": the tube's voltage}.
+struct RateFloor {
+  std::string compound;
+  double density_g_cm3 = 0.0;
+  double tube_kv = 0.0;
+  double per_mm = 0.0;  // the floor itself
+
+  static RateFloor fromConfig(const ConfigNode& node);
+  nlohmann::json toJson() const;
+};
+
+struct CurveOptions {
+  int max_terms = 4;             // 1 to 4
+  double noise = 0.0;            // of one table value
+  bool free_amplitude = false;   // a wedge whose thin end is not at 0 mm
+  double rate_floor_per_mm = 0;  // every rate at least this (RateFloor); 0: none
+};
+
 struct CurveFit {
   std::vector<TermsFit> fits;  // M = 1 .. max_terms
   size_t chosen = 0;           // index into fits
   std::string choice;          // why that one, in words
+  double rate_floor_per_mm = 0.0;
+  size_t points = 0;   // table values fitted
+  double noise = 0.0;  // of one of them
   const TermsFit& best() const { return fits[chosen]; }
+
+  // The standard uncertainty of the chosen curve that its table shows: the
+  // noise carried into the fitted curve (noise sqrt(p / n) for p free
+  // parameters and n table values, the rms standard deviation of a linear
+  // least-squares fit's values) combined with the misfit the noise does not
+  // explain (sqrt(max(0, rms^2 - noise^2))). What the table cannot show
+  // (its paths' errors, the scatter taken out) a calibration adds by
+  // propagation.
+  double tableUncertainty() const;
 };
 
-// Fits 1 .. max_terms (1 to 4) exponentials to the table (relative
-// weighting; a free amplitude for a wedge whose thin end is not at 0 mm) and
-// picks the smallest M whose rms residual is at most 1.25 x `noise` (the
-// noise of one table value); if none is, the smallest M whose rms residual is
+// Fits 1 .. max_terms exponentials to the table (relative weighting; every
+// rate at least the floor) and picks the smallest M whose rms residual is at
+// most 1.25 x the noise; if none is, the smallest M whose rms residual is
 // within 10 % of the best M's. Throws Error naming `what` if the chosen fit
 // does not converge to the data: a residual above 5 % of the intensity
 // somewhere, which an exponential sum through a real attenuation curve never
@@ -40,8 +74,7 @@ struct CurveFit {
 // fits made so far are left there when it throws (a failed calibration's
 // diagnostic).
 CurveFit fitCurve(std::span<const double> path_mm, std::span<const double> transmission,
-                  int max_terms, double noise, bool free_amplitude, const std::string& what,
-                  CurveFit* tried = nullptr);
+                  const CurveOptions& options, const std::string& what, CurveFit* tried = nullptr);
 
 nlohmann::json toJson(const CurveFit& fit);
 
@@ -60,5 +93,7 @@ struct CurveDeviation {
 };
 CurveDeviation curveDeviation(const std::function<double(double)>& a,
                               const std::function<double(double)>& b, double max_path_mm);
+// Its largest |a(x) - b(x)| for two materials.
+double largestDifference(const ExponentialSum& a, const ExponentialSum& b, double max_path_mm);
 
 }  // namespace xgauge

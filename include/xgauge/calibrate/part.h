@@ -35,7 +35,12 @@
 //   calibration  {"terms": M (1 to 4, default 3),
 //                 "rounds": 1 to 10 (default 4),
 //                 "initial": {"radiograph": name, "region": [x, y, w, h],
-//                             "path_mm": x1}}
+//                             "path_mm": x1},
+//                 "rate_floor": optional {"compound", "density_g_cm3", "tube_kv"}
+//                 (curve.h: every rate at least the material's attenuation
+//                 at its weakest in the tube's spectrum)}
+// The material written carries the calibrated path range and, as its
+// transmission uncertainty, what its table shows (CurveFit::tableUncertainty).
 #pragma once
 
 #include "xgauge/calibrate/curve.h"
@@ -46,6 +51,7 @@
 
 #include <filesystem>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -61,6 +67,7 @@ struct PartCalibrationJob {
   int initial_radiograph = 0;  // index into measurement().radiographs
   PixelRect initial_region;
   double initial_path_mm = 0.0;
+  std::optional<RateFloor> rate_floor;
 
   static PartCalibrationJob load(const std::filesystem::path& path);
 };

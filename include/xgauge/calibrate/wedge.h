@@ -20,7 +20,16 @@
 //      smallest M that fits within the noise (curve.h);
 //   6. shift and scale by eq. 3.7 so that I(0) = 1 and I(x_max) is kept, with
 //      x_max the path at the thick end (the wedge's full thickness, seen along
-//      the slightly oblique ray there).
+//      the slightly oblique ray there);
+//   7. the curve's standard uncertainty, written into material.json: what
+//      its table shows (CurveFit::tableUncertainty) combined with the curve's
+//      largest change over the calibrated range when the scatter's weight and
+//      width and the wedge's thickness and ramp length each move by their
+//      standard uncertainty (GUM, sensitivities by re-solving). The range,
+//      from the first row to x_max, is written with it.
+// With "rate_floor" (curve.h) every rate is at least the material's
+// attenuation at its weakest in the tube's spectrum, so the curve keeps
+// falling beyond the wedge's thickness.
 //
 // Job JSON (paths relative to the job file; unknown keys are errors):
 //   description        free text
@@ -29,7 +38,11 @@
 //                       "white_region": [x, y, w, h]}
 //   wedge              {"max_thickness_mm": x_max, "ramp_length_mm": H}: the full
 //                      thickness at the thick end and the ramp's length along
-//                      the detector's rows (thick end to thin end)
+//                      the detector's rows (thick end to thin end); optional
+//                      "max_thickness_uncertainty_mm", "ramp_length_uncertainty_mm"
+//                      (standard uncertainties, default 0.01 and 0.02 mm: a
+//                      caliper's)
+//   rate_floor         optional {"compound", "density_g_cm3", "tube_kv"} (curve.h)
 //   scatter            optional {"weight": w, "sigma_mm": s} (measure/job.h)
 //   ramp               optional overrides: {"columns": [begin, end],
 //                      "rows": [thin end, thick end]} (continuous row coordinates)
@@ -59,12 +72,24 @@ struct WedgeCalibrationJob {
   RadiographSpec radiograph;
   double max_thickness_mm = 0.0;
   double ramp_length_mm = 0.0;
+  double max_thickness_uncertainty_mm = 0.01;
+  double ramp_length_uncertainty_mm = 0.02;
+  std::optional<RateFloor> rate_floor;
   ScatterModel scatter;
   RampOptions ramp;
   int max_terms = 4;
   int margin_rows = 4;
 
   static WedgeCalibrationJob load(const std::filesystem::path& path);
+};
+
+// One influence on the curve (step 7): its value and standard uncertainty,
+// and the curve's largest change over the calibrated range when it moves by
+// that uncertainty.
+struct CurveInfluence {
+  std::string name;
+  double value = 0.0, uncertainty = 0.0;
+  double change = 0.0;
 };
 
 struct WedgeCalibration {
@@ -78,6 +103,8 @@ struct WedgeCalibration {
   CurveFit fit;
   double x0_mm = 0.0;  // eq. 3.7
   ExponentialSum material{{{1.0, 0.0}}};
+  double table_uncertainty = 0.0;
+  std::vector<CurveInfluence> influences;
   double seconds = 0.0;
   Image normalized;  // the radiograph as the ramp was found in (scatter removed)
   // The step under way or, after a success, "done": what a failure names.
@@ -90,6 +117,5 @@ WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job);
 // throws (normalized image, ramp, table, fits tried): a failed
 // calibration's diagnostic (report/calibration.h).
 void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out);
-
 
 }  // namespace xgauge

@@ -3,7 +3,7 @@
 // 3.4, calibration (a); docs/method.md):
 //
 //   min over a, mu   sum_i w_i^2 (sum_k a_k exp(-mu_k x_i) - T_i)^2
-//   subject to       a_k >= 0,  sum_k a_k = 1,  mu_k >= 0.
+//   subject to       a_k >= 0,  sum_k a_k = 1,  mu_k >= mu_min >= 0.
 //
 // Method: variable projection. For fixed mu the model is linear in a, and the
 // equality-constrained non-negative least-squares problem in a is solved
@@ -51,6 +51,13 @@ struct ExponentialFitOptions {
   // never exceeds 1 (beyond rounding); one measured from radiographs may,
   // by its noise, near x = 0: raise this for measured data.
   double max_transmission = 1.0 + 1e-9;
+
+  // Lower bound of every rate mu_k (1/mm), e.g. attenuationFloorPerMm: the
+  // material's attenuation at the tube's highest photon energy, below which
+  // no rate of a physical curve lies. 0: rates only >= 0 (a rate that makes
+  // its term constant over the data is then returned as exactly 0, and the
+  // curve levels off beyond the data).
+  double min_mu_per_mm = 0.0;
 
   // Budget of objective evaluations for each local search (each start and
   // the final polish). Must be >= 100.

@@ -14,12 +14,17 @@
 //   density_g_cm3    monochromatic: density in g/cm^3
 //   energy_kev       monochromatic: photon energy in keV
 //   description      optional free text
+//   uncertainty      optional {"transmission": u}, see transmissionUncertainty()
+//   calibrated_range_mm  optional [low, high]: the paths its calibration
+//                    saw; a measurement warns when its part has longer paths
 // A monochromatic material is one term with mu from xraylib.
 #pragma once
 
 #include "xgauge/core/config.h"
 
+#include <array>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -52,6 +57,10 @@ class ExponentialSum {
   static constexpr double kDefaultTransmissionUncertainty = 0.001;
   double transmissionUncertainty() const { return transmission_uncertainty_; }
   void setTransmissionUncertainty(double u) { transmission_uncertainty_ = u; }
+  // The path lengths (mm) the curve was calibrated over, when its file
+  // says; beyond them it is extrapolated.
+  const std::optional<std::array<double, 2>>& calibratedRange() const { return calibrated_range_; }
+  void setCalibratedRange(std::optional<std::array<double, 2>> range) { calibrated_range_ = range; }
   // The same curve with every rate scaled by (1 + relative).
   ExponentialSum withScaledRates(double relative) const;
   // The relative scale of the rates that moves the curve by `transmission`
@@ -64,6 +73,7 @@ class ExponentialSum {
   std::vector<ExponentialTerm> terms_;
   std::string description_;
   double transmission_uncertainty_ = kDefaultTransmissionUncertainty;
+  std::optional<std::array<double, 2>> calibrated_range_;
 };
 
 }  // namespace xgauge

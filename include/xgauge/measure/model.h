@@ -105,7 +105,8 @@ class ForwardModel {
   std::vector<int> jointIndices() const;
   // Appends the material's parameters to the layout and to `theta`; from
   // then on the material is read from theta at every evaluation.
-  void freeMaterial(const ExponentialSum& material, std::vector<double>& theta);
+  void freeMaterial(const ExponentialSum& material, std::vector<double>& theta,
+                    double rate_floor_per_mm = 0.0);
   std::vector<int> materialIndices() const { return layout_.block("material"); }
   // The material a parameter vector stands for (the fixed one when the
   // material is not free).

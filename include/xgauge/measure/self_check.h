@@ -10,7 +10,10 @@
 //   - residual regions: connected areas (8-neighbours, one sign) where the
 //     3 x 3 mean of the residual exceeds kRegionSigmas robust sigmas of that
 //     mean over the roi, at least kRegionMinPixels pixels of the fit's level:
-//     where the part differs from its model (a void, a chip, a burr, dirt).
+//     where the part differs from its model (a void, a chip, a burr, dirt);
+//   - paths through the fitted part longer than the material's calibrated
+//     range (its file's "calibrated_range_mm") by more than kBeyondRange of
+//     it: the curve is extrapolated there.
 #pragma once
 
 #include "xgauge/core/transform.h"
@@ -25,6 +28,7 @@ inline constexpr double kMisfitRatio = 1.25;
 inline constexpr double kWorseRatio = 2.0;
 inline constexpr double kRegionSigmas = 5.0;
 inline constexpr int kRegionMinPixels = 6;
+inline constexpr double kBeyondRange = 0.01;
 
 struct ResidualRegion {
   std::string radiograph;
@@ -46,6 +50,7 @@ struct RadiographCheck {
   // dimension leaves a band of large residuals along an edge, which the rms
   // weighs as it should and a mean |residual| over the whole roi dilutes.
   double misfit_ratio = 0.0;
+  double longest_path_mm = 0.0;  // through the fitted part, pixel means at the fit's level
 };
 
 struct SelfCheck {

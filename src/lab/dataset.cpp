@@ -33,6 +33,9 @@ struct Acquisition {
   double scatter_weight = 0.0;
   double scatter_sigma_px = 0.0;
   int flat_frames = 16;
+  double heel_gradient = 0.0;
+  bool cos3_falloff = false;
+  double column_darkening = 0.0;
   DetectorNoiseModel noise;
 
   static Acquisition fromConfig(const ConfigNode& node) {
@@ -51,6 +54,9 @@ struct Acquisition {
     a.flat_frames = static_cast<int>(node.get<double>("flat_frames", 16.0));
     if (a.flat_frames < 1 || a.flat_frames > 1024)
       node.at("flat_frames").fail("expected 1 to 1024");
+    if (auto heel = node.find("heel_gradient")) a.heel_gradient = heel->number(-0.5, 0.5);
+    a.cos3_falloff = node.get<bool>("cos3_falloff", false);
+    if (auto dark = node.find("column_darkening")) a.column_darkening = dark->number(0.0, 0.1);
     if (auto noise = node.find("noise")) a.noise = DetectorNoiseModel::fromConfig(*noise);
     a.noise.validate();
     return a;
@@ -202,8 +208,19 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
   ProgressBar progress("simulate", shot_count + 2);
 
   // The detector: fixed patterns, then dark and flat frames.
-  const DetectorPattern pattern =
+  // The open beam's heel effect and fall-off multiply the gain: exposures and
+  // flats alike see them, as on a real panel.
+  DetectorPattern pattern =
       DetectorPattern::generate(acquisition.noise, machine.columns, machine.rows, recipe.seed);
+  if (acquisition.heel_gradient != 0.0 || acquisition.cos3_falloff) {
+    const Image profile =
+        beamProfile(machine.columns, machine.rows, machine.pitch_u_mm, machine.pitch_v_mm,
+                    machine.cx_px, machine.cy_px, machine.source_detector_distance_mm,
+                    acquisition.heel_gradient, acquisition.cos3_falloff);
+    auto g = pattern.gain.pixels();
+    auto p = profile.pixels();
+    for (size_t k = 0; k < g.size(); ++k) g[k] *= p[k];
+  }
   writeTiff(folder / "dark.tif",
             darkFrame(pattern, acquisition.noise, recipe.seed, 0, acquisition.flat_frames),
             TiffFormat::kFloat32);
@@ -231,6 +248,7 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
     if (acquisition.scatter)
       intensity = scatterBlur(std::move(intensity), acquisition.scatter_weight,
                               acquisition.scatter_sigma_px);
+    darkenColumns(intensity, acquisition.column_darkening);
     Exposure exposure = exposeRaw(intensity, pattern, acquisition.noise, recipe.seed, index,
                                   previous_signal ? &*previous_signal : nullptr);
     writeTiff(folder / (shot.name + ".tif"), exposure.raw_adu,
@@ -280,6 +298,15 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
       {"material",
        {{"compound", material_layer.compound}, {"density_g_cm3", material_layer.density_g_cm3}}},
       {"detector", acquisition.noise.toJson()},
+      {"effects",
+       {{"scatter", acquisition.scatter ? nlohmann::json{{"weight", acquisition.scatter_weight},
+                                                         {"sigma_px", acquisition.scatter_sigma_px},
+                                                         {"sigma_mm", acquisition.scatter_sigma_px *
+                                                                          machine.pitch_u_mm}}
+                                        : nlohmann::json(nullptr)},
+        {"heel_gradient", acquisition.heel_gradient},
+        {"cos3_falloff", acquisition.cos3_falloff},
+        {"column_darkening", acquisition.column_darkening}}},
       {"part",
        {{"model", std::filesystem::weakly_canonical(recipe.part_file).string()},
         {"dimensions", dims}}},

@@ -338,4 +338,40 @@ Image flatFrame(const DetectorPattern& pattern, const DetectorNoiseModel& model,
                         {kFlatPhotons, kFlatRead, index}, frames_averaged, nullptr);
 }
 
+Image beamProfile(int columns, int rows, double pitch_u_mm, double pitch_v_mm, double cx_px,
+                  double cy_px, double source_detector_distance_mm, double heel_gradient,
+                  bool cos3) {
+  if (!(std::abs(heel_gradient) <= 0.5))
+    fail("heel_gradient must be in [-0.5, 0.5], got {}", heel_gradient);
+  if (columns < 1 || rows < 1) fail("detector size must be positive, got {}x{}", columns, rows);
+  Image profile(columns, rows, 1.0f);
+  const double d = source_detector_distance_mm;
+  for (int v = 0; v < rows; ++v)
+    for (int u = 0; u < columns; ++u) {
+      double value = 1.0 + heel_gradient * (v + 0.5 - cy_px) / rows;
+      if (cos3) {
+        const double x = (u + 0.5 - cx_px) * pitch_u_mm, y = (v + 0.5 - cy_px) * pitch_v_mm;
+        value *= std::pow(d / std::sqrt(d * d + x * x + y * y), 3.0);
+      }
+      if (!(value > 0.0)) fail("the open beam's profile reaches 0 at pixel ({}, {})", u, v);
+      profile(u, v) = static_cast<float>(value);
+    }
+  return profile;
+}
+
+void darkenColumns(Image& intensity, double strength) {
+  if (!(strength >= 0.0 && strength <= 0.1))
+    fail("column_darkening must be in [0, 0.1], got {}", strength);
+  if (strength == 0.0) return;
+  for (int u = 0; u < intensity.width(); ++u) {
+    double attenuation = 0.0;
+    for (int v = 0; v < intensity.height(); ++v)
+      attenuation += 1.0 - static_cast<double>(intensity(u, v));
+    const double drop = strength * attenuation / intensity.height();
+    for (int v = 0; v < intensity.height(); ++v)
+      intensity(u, v) =
+          static_cast<float>(std::max(0.0, static_cast<double>(intensity(u, v)) - drop));
+  }
+}
+
 }  // namespace xgauge

@@ -109,6 +109,37 @@ DetectorNoiseModel idealDetector() {
   return model;
 }
 
+TEST(BeamProfile, HeelAndCosineCubedFallOffInClosedForm) {
+  // 200 x 100 pixels of 0.5 mm, principal point (60.5, 40.5), D = 400 mm.
+  const Image heel = beamProfile(200, 100, 0.5, 0.5, 60.5, 40.5, 400.0, 0.1, false);
+  // Linear in the row, 1 at the principal point's row, 0.1 over the height.
+  EXPECT_NEAR(heel(7, 40), 1.0, 1e-6);
+  EXPECT_NEAR(heel(150, 90), 1.0 + 0.1 * 50.0 / 100.0, 1e-6);
+  EXPECT_NEAR(heel(0, 99) - heel(0, 0), 0.1 * 99.0 / 100.0, 1e-6);
+  EXPECT_EQ(heel(0, 30), heel(199, 30));  // no change along a row
+  const Image fall = beamProfile(200, 100, 0.5, 0.5, 60.5, 40.5, 400.0, 0.0, true);
+  EXPECT_NEAR(fall(60, 40), 1.0, 1e-9);
+  // Pixel (199, 99): centre 139 px = 69.5 mm and 59 px = 29.5 mm away.
+  const double r2 = 69.5 * 69.5 + 29.5 * 29.5;
+  EXPECT_NEAR(fall(199, 99), std::pow(400.0 / std::sqrt(400.0 * 400.0 + r2), 3.0), 1e-6);
+  EXPECT_LT(fall(199, 99), 0.96);
+  EXPECT_THROW(beamProfile(10, 10, 0.5, 0.5, 5, 5, 400.0, 0.6, false), Error);
+}
+
+TEST(ColumnDarkening, EachColumnDropsByItsMeanAttenuation) {
+  Image image(4, 10, 1.0f);
+  for (int v = 0; v < 5; ++v) image(1, v) = 0.5f;  // column 1: mean attenuation 0.25
+  Image flat = image;
+  darkenColumns(image, 0.04);
+  EXPECT_EQ(image(0, 7), 1.0f);  // open columns unchanged
+  EXPECT_NEAR(image(1, 7), 1.0 - 0.04 * 0.25, 1e-7);
+  EXPECT_NEAR(image(1, 2), 0.5 - 0.04 * 0.25, 1e-7);
+  Image open(4, 10, 1.0f);
+  darkenColumns(open, 0.1);  // a flat frame is unchanged
+  for (float p : open.pixels()) EXPECT_EQ(p, 1.0f);
+  EXPECT_THROW(darkenColumns(flat, 0.2), Error);
+}
+
 TEST(Detector, FlatFrameHasPhotonAndReadNoise) {
   const DetectorNoiseModel model = idealDetector();
   const DetectorPattern pattern = DetectorPattern::generate(model, 1024, 1024, 1);

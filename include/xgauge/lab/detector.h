@@ -31,6 +31,36 @@
 namespace xgauge {
 
 // ---------------------------------------------------------------------------
+// The open beam's shape and the panel's signal-dependent artefacts
+// ---------------------------------------------------------------------------
+
+// The open beam's relative intensity over the detector (mean 1 at the
+// principal point), what a flat frame shows and a flat-field correction
+// removes:
+//   - the heel effect: the anode absorbs more of the beam leaving towards its
+//     heel, so the intensity falls along the anode-cathode axis, here the
+//     detector's rows: factor 1 + heel_gradient (v - cy) / rows, with v the
+//     row and cy the principal point's (heel_gradient in [-0.5, 0.5]: the
+//     relative change from the top row to the bottom row);
+//   - with `cos3`, the fall-off of a point source on a flat detector,
+//     cos^3 of the angle between the ray and the detector's normal: the
+//     inverse square of the distance times the obliquity,
+//     (D / sqrt(D^2 + r^2))^3 for a pixel centre r mm from the principal point.
+// Throws Error for a heel_gradient out of range or a profile that would
+// reach 0.
+Image beamProfile(int columns, int rows, double pitch_u_mm, double pitch_v_mm, double cx_px,
+                  double cy_px, double source_detector_distance_mm, double heel_gradient,
+                  bool cos3);
+
+// Signal-dependent column darkening of a flat panel: each column reads lower
+// in proportion to the attenuation along it,
+//   I'(x, y) = I(x, y) - strength * mean_y (1 - I(x, y)),
+// clamped at 0 (strength in [0, 0.1]). A flat frame (I = 1) is unchanged, so
+// a flat-field correction does not remove it. Throws Error for a strength
+// out of range.
+void darkenColumns(Image& intensity, double strength);
+
+// ---------------------------------------------------------------------------
 // Noise and fixed-pattern artefacts
 // ---------------------------------------------------------------------------
 

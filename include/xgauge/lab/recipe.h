@@ -13,6 +13,13 @@
 //     focal_spot      {"fwhm_mm": f, "samples": k}: Gaussian spot, k jittered source points
 //     scatter         {"weight": w, "sigma_px": s}: I' = w G(I, s) + (1 - w) I; omit to disable
 //     flat_frames     frames averaged into the flat and dark frames (default 16)
+//     heel_gradient   the open beam's relative change from the top row to the
+//                     bottom row (heel effect), -0.5..0.5, default 0
+//     cos3_falloff    true: the open beam falls off as cos^3 of the ray's angle
+//                     (lab/detector.h beamProfile), default false
+//     column_darkening  each column reads lower by this times the mean
+//                     attenuation along it (lab/detector.h darkenColumns),
+//                     0..0.1, default 0
 //   part              {"model": path, "dimensions": {name: value, ...}} (unnamed = nominal)
 //   shots             the acquisition:
 //     base_pose       pose of the first translated shot (xray/machine.h pose keys)

@@ -13,7 +13,12 @@ namespace xgauge {
 
 namespace {
 
-constexpr int kBins = 300;
+// Path bins: up to kMaxBins of at least kMinBinPixels pixels each; fewer and
+// smaller for few pixels (a line detector's row: hundreds, not hundreds of
+// thousands), about kPixelsPerBin per bin, at least kMinBins.
+constexpr int kMaxBins = 300;
+constexpr int kMinBins = 20;
+constexpr int64_t kPixelsPerBin = 100;
 constexpr int64_t kMinBinPixels = 20;
 constexpr double kSmoothPathMm = 0.01;  // largest second difference of the path around a pixel
 constexpr double kSettled = 2e-4;       // material change that ends the rounds
@@ -69,15 +74,19 @@ Table tabulate(ForwardModel& model, const std::vector<double>& theta) {
     fail(
         "no pixel of the rois sees the part away from its edges: the poses do not put the part in "
         "the rois");
-  std::vector<double> sum_x(kBins, 0.0), sum_i(kBins, 0.0), sum_ii(kBins, 0.0);
-  std::vector<int64_t> count(kBins, 0);
+  const int bins =
+      static_cast<int>(std::clamp<int64_t>(table.pixels / kPixelsPerBin, kMinBins, kMaxBins));
+  const int64_t min_pixels =
+      std::clamp<int64_t>(table.pixels / (4 * bins), kMinBinPixels / 4, kMinBinPixels);
+  std::vector<double> sum_x(static_cast<size_t>(bins), 0.0), sum_i(sum_x), sum_ii(sum_x);
+  std::vector<int64_t> count(static_cast<size_t>(bins), 0);
   for (const auto& [x, i] : pairs) {
-    const auto b = static_cast<size_t>(std::min(kBins - 1, static_cast<int>(x / longest * kBins)));
+    const auto b = static_cast<size_t>(std::min(bins - 1, static_cast<int>(x / longest * bins)));
     sum_x[b] += x, sum_i[b] += i, sum_ii[b] += i * i, ++count[b];
   }
   std::vector<double> errors;
-  for (size_t b = 0; b < static_cast<size_t>(kBins); ++b) {
-    if (count[b] < kMinBinPixels) continue;
+  for (size_t b = 0; b < static_cast<size_t>(bins); ++b) {
+    if (count[b] < min_pixels) continue;
     const double n = static_cast<double>(count[b]);
     const double mean = sum_i[b] / n;
     if (!(mean > 0.0 && mean <= 1.5)) continue;  // noise may lift a short path above 1
@@ -89,7 +98,7 @@ Table tabulate(ForwardModel& model, const std::vector<double>& theta) {
     fail(
         "only {} path bins have {} or more smooth pixels: the radiographs show too few thicknesses "
         "of the part to calibrate from",
-        table.path_mm.size(), kMinBinPixels);
+        table.path_mm.size(), min_pixels);
   std::nth_element(errors.begin(), errors.begin() + static_cast<ptrdiff_t>(errors.size() / 2),
                    errors.end());
   table.noise = errors[errors.size() / 2];

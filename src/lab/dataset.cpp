@@ -111,15 +111,18 @@ PixelRect findWhiteRegion(const ImageT<uint8_t>& shadowed, const Machine& machin
   const int side = std::max(16, machine.columns / 20);
   const int margin = std::max(2, machine.columns / 50);
   const int w = machine.columns, h = machine.rows;
+  // A detector of few rows (a line scanner: one) gets a strip of its height.
+  const int side_y = std::min(side, h);
+  const int margin_y = h >= side + 2 * margin ? margin : 0;
   const int xs[] = {margin, w - margin - side, (w - side) / 2};
-  const int ys[] = {margin, h - margin - side, (h - side) / 2};
+  const int ys[] = {margin_y, h - margin_y - side_y, (h - side_y) / 2};
   for (int y : ys)
     for (int x : xs) {
-      const PixelRect r{x, y, side, side};
-      if (x == xs[2] && y == ys[2]) continue;  // not the centre
+      const PixelRect r{x, y, side, side_y};
+      if (x == xs[2] && y == ys[2] && h > side_y) continue;  // not the centre
       // Clear of any shadow by a further `margin` all around.
       const PixelRect guard =
-          PixelRect{x - margin, y - margin, side + 2 * margin, side + 2 * margin}.intersect(
+          PixelRect{x - margin, y - margin_y, side + 2 * margin, side_y + 2 * margin_y}.intersect(
               machine.detectorRect());
       bool clear = true;
       for (int v = guard.y; v < guard.bottom() && clear; ++v)

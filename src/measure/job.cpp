@@ -217,6 +217,13 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
         spec.distance_mm = r.at("distance_mm").number(1e-6, 1e4);
         if (r.has("distance_uncertainty_mm"))
           spec.distance_uncertainty_mm = r.at("distance_uncertainty_mm").number(0.0, 100.0);
+        if (auto e = r.find("axis_elevation_bounds_deg")) {
+          if (e->size() != 2) e->fail("expected [lo, hi] in degrees");
+          spec.axis_elevation_bounds_deg = {(*e)[0].number(-90.0, 90.0),
+                                            (*e)[1].number(-90.0, 90.0)};
+          if (!(spec.axis_elevation_bounds_deg[0] <= spec.axis_elevation_bounds_deg[1]))
+            e->fail("lo must not exceed hi");
+        }
       }
     }
     if (spec.pattern == Acquisition::kKnown) spec.known_pose = poseFromConfig(r.at("pose"));
@@ -230,7 +237,8 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
   const auto kind = scheduleKindFromName(schedule);
   if (!kind)
     root.at("schedule")
-        .fail(fmt::format("unknown schedule '{}' (known: default, gauss-newton, thesis)", schedule));
+        .fail(
+            fmt::format("unknown schedule '{}' (known: default, gauss-newton, thesis)", schedule));
   job.schedule = *kind;
   const std::string loss = root.get<std::string>("loss", "l1");
   if (loss != "l1" && loss != "l2") root.at("loss").fail("expected \"l1\" or \"l2\"");

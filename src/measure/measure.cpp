@@ -38,6 +38,9 @@ double firstStep(ParameterKind kind) {
   return 1.0;
 }
 
+constexpr int kLineDetectorRows = 8;
+constexpr int kLineIterationFactor = 10;
+
 StagePlan poseStage(const std::string& name, const PoseStage& stage, std::vector<int> indices,
                     int radiograph, const ForwardModel& model) {
   StagePlan plan{name,
@@ -81,8 +84,9 @@ void fitAxis(ForwardModel& model, std::vector<double>& theta, Runner& runner,
       std::vector<double> t = theta;
       t[static_cast<size_t>(p.index(spec.name + "/axis/azimuth"))] =
           std::atan2(sign * dz, dx) * kRadToDeg;
-      t[static_cast<size_t>(p.index(spec.name + "/axis/elevation"))] =
-          std::asin(std::clamp(dy / m, -1.0, 1.0)) * kRadToDeg;
+      const auto elevation = static_cast<size_t>(p.index(spec.name + "/axis/elevation"));
+      t[elevation] = std::clamp(std::asin(std::clamp(dy / m, -1.0, 1.0)) * kRadToDeg,
+                                model.lower()[elevation], model.upper()[elevation]);
       const double loss = model.loss(t, coarse, 1, only).value_or(kInf);
       if (loss < best) best = loss, best_theta = t;
     }
@@ -190,12 +194,18 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     runner.run(plan);
   }
   const LeastSquaresStage& ls = schedule.least_squares;
+  // A line detector's images (a few rows) cost little per iteration and its
+  // fits run along long valleys (the depth against the move's axis):
+  // kLineIterationFactor times the iterations.
+  const int ls_level = model.levelForWidth(ls.min_width_px);
+  const bool line =
+      model.radiograph(0).levels[static_cast<size_t>(ls_level)].height() < kLineDetectorRows;
   if (ls.enabled)
-    runner.report(solveLeastSquares(
-        model, theta, all, every_radiograph, model.levelForWidth(ls.min_width_px), ls.samples,
-        ls.max_iterations, model.job().loss == LossKind::kMeanAbsolute,
-        ls.render_derivatives ? JacobianKind::kRenderDerivatives
-                              : JacobianKind::kForwardDifferences));
+    runner.report(solveLeastSquares(model, theta, all, every_radiograph, ls_level, ls.samples,
+                                    ls.max_iterations * (line ? kLineIterationFactor : 1),
+                                    model.job().loss == LossKind::kMeanAbsolute,
+                                    ls.render_derivatives ? JacobianKind::kRenderDerivatives
+                                                          : JacobianKind::kForwardDifferences));
 }
 
 // The uncertainty budget and the self-checks, from the residuals and their

@@ -65,10 +65,10 @@ ForwardModel::ForwardModel(const MeasurementInputs& inputs)
 
 ForwardModel::ForwardModel(const MeasurementInputs& inputs, const ExponentialSum& material)
     : inputs_(inputs), part_(*inputs.part), material_(material) {
-  XG_CHECK(inputs.radiographs.size() == inputs.job.radiographs.size() &&
-               !inputs.radiographs.empty(),
-           "the inputs hold {} prepared radiographs for {} in the job", inputs.radiographs.size(),
-           inputs.job.radiographs.size());
+  XG_CHECK(
+      inputs.radiographs.size() == inputs.job.radiographs.size() && !inputs.radiographs.empty(),
+      "the inputs hold {} prepared radiographs for {} in the job", inputs.radiographs.size(),
+      inputs.job.radiographs.size());
   const MeasurementJob& job = inputs.job;
 
   // The part: its reference centre and the dimension parameters.
@@ -124,17 +124,22 @@ ForwardModel::ForwardModel(const MeasurementInputs& inputs, const ExponentialSum
       case Acquisition::kRotated: {
         std::vector<double> lo, hi, mid;
         for (const auto& range : job.rotation_bounds_deg)
-          lo.push_back(range[0]), hi.push_back(range[1]), mid.push_back(0.5 * (range[0] + range[1]));
-        layout_.add(s.name + "/rotation", ParameterKind::kRotation, {"rx", "ry", "rz"}, lo, hi, mid);
+          lo.push_back(range[0]), hi.push_back(range[1]),
+              mid.push_back(0.5 * (range[0] + range[1]));
+        layout_.add(s.name + "/rotation", ParameterKind::kRotation, {"rx", "ry", "rz"}, lo, hi,
+                    mid);
         lo.clear(), hi.clear(), mid.clear();
         for (const auto& range : job.centre_bounds_mm)
-          lo.push_back(range[0]), hi.push_back(range[1]), mid.push_back(0.5 * (range[0] + range[1]));
+          lo.push_back(range[0]), hi.push_back(range[1]),
+              mid.push_back(0.5 * (range[0] + range[1]));
         layout_.add(s.name + "/position", ParameterKind::kPosition, {"x", "y", "z"}, lo, hi, mid);
         break;
       }
       case Acquisition::kTranslated:
-        layout_.add(s.name + "/axis", ParameterKind::kAxis, {"azimuth", "elevation"},
-                    {-180.0, -90.0}, {180.0, 90.0}, {0.0, 0.0});
+        layout_.add(
+            s.name + "/axis", ParameterKind::kAxis, {"azimuth", "elevation"},
+            {-180.0, s.axis_elevation_bounds_deg[0]}, {180.0, s.axis_elevation_bounds_deg[1]},
+            {0.0, std::clamp(0.0, s.axis_elevation_bounds_deg[0], s.axis_elevation_bounds_deg[1])});
         break;
       case Acquisition::kKnown:
         break;
@@ -206,8 +211,7 @@ void ForwardModel::useMaterialOf(std::span<const double> theta) {
 int ForwardModel::levelForWidth(int min_width) const {
   if (min_width <= 0) return 0;
   int level = levels() - 1;
-  while (level > 0 && radiograph(0).levels[static_cast<size_t>(level)].width() < min_width)
-    --level;
+  while (level > 0 && radiograph(0).levels[static_cast<size_t>(level)].width() < min_width) --level;
   return level;
 }
 
@@ -387,10 +391,9 @@ bool ForwardModel::poseVelocities(std::span<const double> theta, std::span<const
   return true;
 }
 
-bool ForwardModel::residualsAndJacobian(std::span<const double> theta,
-                                        std::span<const int> indices, int level, int samples,
-                                        std::span<const int> radiographs, std::vector<double>& out,
-                                        std::vector<double>& jacobian) {
+bool ForwardModel::residualsAndJacobian(std::span<const double> theta, std::span<const int> indices,
+                                        int level, int samples, std::span<const int> radiographs,
+                                        std::vector<double>& out, std::vector<double>& jacobian) {
   out.clear();
   jacobian.clear();
   XG_CHECK(theta.size() == static_cast<size_t>(size()), "theta has the wrong size");

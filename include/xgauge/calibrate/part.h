@@ -11,7 +11,9 @@
 //      not the intensity of its centre's path) gives a pair (path, intensity);
 //      the intensity has the modelled scatter taken out, w G(I) computed from
 //      the current model, as the forward model adds it. The pairs are binned
-//      by path (bins of 1/300 of the longest path, at least 20 pixels each)
+//      by path (bins of 1/300 of the longest path, at least 20 pixels each;
+//      fewer and smaller bins when there are few pixels, as on a line
+//      detector: about 100 pixels per bin, at least 20 bins of 5 pixels)
 //      into a table, to which M = 1 .. terms exponentials are fitted
 //      (curve.h; weights summing to 1, so I(0) = 1).
 //   4. Everything together: poses, the material's weights and rates (and any

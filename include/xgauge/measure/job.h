@@ -31,6 +31,12 @@
 //     distance_uncertainty_mm
 //                      translated, optional: its standard uncertainty (mm),
 //                      0 .. 100, default kDefaultTranslationUncertaintyMm
+//     axis_elevation_bounds_deg
+//                      translated, optional: [lo, hi] within [-90, 90], default
+//                      [-90, 90]: bounds of the move's angle out of the world's
+//                      x-z plane (towards the detector's columns). A line
+//                      detector (one row) cannot see a move along its columns'
+//                      direction, so it needs them (a conveyor in the row's plane)
 //     pose             known: the pose (xray/machine.h keys)
 //   pose_bounds        search bounds of every free pose (world frame, of the part's
 //                      bounding-box centre; angles in degrees, R = Rz Ry Rx):
@@ -77,6 +83,7 @@ struct RadiographSpec {
   int reference = -1;        // index of the reference radiograph
   double distance_mm = 0.0;  // translated
   double distance_uncertainty_mm = kDefaultTranslationUncertaintyMm;  // translated
+  std::array<double, 2> axis_elevation_bounds_deg{-90.0, 90.0};       // translated
   Pose known_pose;                                                    // known
 };
 

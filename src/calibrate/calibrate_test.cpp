@@ -140,6 +140,28 @@ TEST(RampDetection, FindsTheRowsOfASyntheticRampWithinTwoRows) {
   }
 }
 
+TEST(RampDetection, ColumnDarkeningDoesNotHideTheOpenBeam) {
+  // A flat panel's signal-dependent column darkening: each column reads
+  // lower by 2 % of its mean attenuation, so the open beam above and below
+  // the wedge lies about 0.007 below 1 in the wedge's columns, more than the
+  // shadow threshold's margin.
+  for (const auto& [thin, thick] : {std::pair{100, 500}, std::pair{500, 100}}) {
+    Image image = syntheticRamp(thin, thick, 0, 5);
+    for (int x = 0; x < image.width(); ++x) {
+      double attenuation = 0.0;
+      for (int y = 0; y < image.height(); ++y) attenuation += 1.0 - static_cast<double>(image(x, y));
+      const double drop = 0.02 * attenuation / image.height();
+      for (int y = 0; y < image.height(); ++y)
+        image(x, y) = static_cast<float>(static_cast<double>(image(x, y)) - drop);
+    }
+    const RampDetection ramp = detectRamp(image, {}, "darkened");
+    EXPECT_NEAR(ramp.thin_row, thin, 2.0);
+    EXPECT_NEAR(ramp.thick_row, thick, 2.0);
+    EXPECT_GE(ramp.column_begin, 60);
+    EXPECT_LE(ramp.column_end, 240);
+  }
+}
+
 TEST(RampDetection, OverridesAreUsedAsGiven) {
   RampOptions options;
   options.columns = std::array<int, 2>{100, 200};

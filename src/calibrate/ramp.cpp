@@ -29,15 +29,35 @@ double medianOf(const std::vector<double>& p, int first, int last) {
   return median(std::vector<double>(p.begin() + first, p.begin() + last + 1));
 }
 
+// The open beam's level in a profile: its brightest value, or 1 when even
+// that is below kOpenFloor (no open beam at all). A flat panel's
+// signal-dependent column darkening lowers the open beam in the columns
+// that see the wedge by about a percent, below a fixed threshold near 1.
+constexpr double kOpenFloor = 0.95;
+double openLevel(double brightest) { return brightest >= kOpenFloor ? brightest : 1.0; }
+double brightestOf(const std::vector<double>& p) {
+  double out = 0.0;
+  for (double v : p) out = std::max(out, v);
+  return out;
+}
+
 // Contrast along each column of the coarse image: mean of the first quarter of
-// its shadow (rows below 0.99) minus the mean of the last quarter. Positive
-// when the column darkens downwards.
+// its shadow (rows 0.01 below the column's open beam) minus the mean of the
+// last quarter. Positive when the column darkens downwards.
 std::vector<double> columnContrast(const Image& coarse) {
   std::vector<double> out(static_cast<size_t>(coarse.width()), 0.0);
   for (int x = 0; x < coarse.width(); ++x) {
+    // The column's open beam: its 90th percentile (its maximum would be
+    // lifted by the noise).
+    std::vector<double> column(static_cast<size_t>(coarse.height()));
+    for (int y = 0; y < coarse.height(); ++y)
+      column[static_cast<size_t>(y)] = static_cast<double>(coarse(x, y));
+    const auto high = column.begin() + static_cast<std::ptrdiff_t>(0.9 * (column.size() - 1));
+    std::nth_element(column.begin(), high, column.end());
+    const double shadow = openLevel(*high) - 0.01;
     int first = -1, last = -1, count = 0;
     for (int y = 0; y < coarse.height(); ++y)
-      if (coarse(x, y) < 0.99f) {
+      if (static_cast<double>(coarse(x, y)) < shadow) {
         if (first < 0) first = y;
         last = y, ++count;
       }
@@ -91,7 +111,8 @@ std::array<double, 2> findRampRows(const std::vector<double>& p, double noise,
   std::vector<double> ps(p.size());
   for (int i = 0; i < n; ++i) ps[static_cast<size_t>(i)] = medianOf(p, i - 3, i + 3);
   // The shadow: the longest run of rows clearly below the open beam.
-  const double threshold = 1.0 - std::max(0.003, 6.0 * noise);
+  const double threshold =
+      openLevel(brightestOf(ps)) - std::max(0.003, 6.0 * noise);
   int best_first = -1, best_last = -2;
   for (int i = 0; i < n;) {
     if (!(ps[static_cast<size_t>(i)] < threshold)) {
@@ -246,9 +267,11 @@ RampDetection detectRamp(const Image& normalized, const RampOptions& options,
   std::vector<double> oriented = out.profile;
   if (options.columns) {
     const int n = static_cast<int>(oriented.size());
+    const double shadow =
+        openLevel(brightestOf(oriented)) - 0.01;
     int first = 0, last = n - 1;
-    while (first < n && oriented[static_cast<size_t>(first)] >= 0.99) ++first;
-    while (last > first && oriented[static_cast<size_t>(last)] >= 0.99) --last;
+    while (first < n && oriented[static_cast<size_t>(first)] >= shadow) ++first;
+    while (last > first && oriented[static_cast<size_t>(last)] >= shadow) --last;
     if (last - first < 20)
       fail("{}: no ramp found in columns [{}, {})", name, out.column_begin, out.column_end);
     thin_on_top = medianOf(oriented, first, first + (last - first) / 4) >=

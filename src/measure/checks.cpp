@@ -124,14 +124,26 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
     // Paths beyond the material's calibrated range: there the curve is
     // extrapolated.
     const Image paths = model.pathLengths(theta, r, level, roi);
+    int64_t through = 0, short_paths = 0;
     for (int y = 0; y < roi.height; ++y)
-      for (int x = 0; x < roi.width; ++x)
-        rc.longest_path_mm = std::max(rc.longest_path_mm, static_cast<double>(paths(x, y)));
+      for (int x = 0; x < roi.width; ++x) {
+        const auto p = static_cast<double>(paths(x, y));
+        rc.longest_path_mm = std::max(rc.longest_path_mm, p);
+        if (p > 0.0) ++through, short_paths += calibrated && p < (*calibrated)[0];
+      }
+    rc.below_range_fraction =
+        through > 0 ? static_cast<double>(short_paths) / static_cast<double>(through) : 0.0;
     if (calibrated && rc.longest_path_mm > (*calibrated)[1] * (1.0 + kBeyondRange))
       check.warnings.push_back(fmt::format(
           "{}: the part has paths up to {:.2f} mm, beyond the {:.2f} mm the material was "
           "calibrated to: the curve is extrapolated there; calibrate over longer paths",
           spec.name, rc.longest_path_mm, (*calibrated)[1]));
+    if (rc.below_range_fraction > kBelowRangeFraction)
+      check.warnings.push_back(fmt::format(
+          "{}: {:.0f} % of the pixels that see the part have paths below the {:.2f} mm the "
+          "material was calibrated from: the curve is interpolated towards I(0) = 1 there; "
+          "calibrate over shorter paths",
+          spec.name, 100.0 * rc.below_range_fraction, (*calibrated)[0]));
     check.radiographs.push_back(rc);
 
     // Residual regions.

@@ -375,6 +375,15 @@ TEST_F(Uncertainty, PathsBeyondTheMaterialsCalibratedRangeAreWarnedAbout) {
   for (const auto& w : measureScene(scene).check.warnings)
     beyond += w.find("beyond the 5.00 mm the material was calibrated to") != std::string::npos;
   EXPECT_EQ(beyond, 2);  // one per radiograph
+  // Calibrated from 15 mm on: most of the cuboid's paths lie below.
+  scene.material.setCalibratedRange(std::array<double, 2>{15.0, 100.0});
+  const MeasurementResult high = measureScene(scene);
+  int below = 0;
+  for (const auto& w : high.check.warnings)
+    below += w.find("below the 15.00 mm the material was calibrated from") != std::string::npos;
+  EXPECT_EQ(below, 2);
+  for (const RadiographCheck& c : high.check.radiographs) EXPECT_GT(c.below_range_fraction, 0.05);
+  for (const RadiographCheck& c : wide.check.radiographs) EXPECT_EQ(c.below_range_fraction, 0.0);
 }
 
 }  // namespace

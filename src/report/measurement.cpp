@@ -104,7 +104,8 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                     {"mean_abs_residual", c.mean_abs_residual},
                     {"rms_residual", c.rms_residual},
                     {"misfit_ratio", c.misfit_ratio},
-                    {"longest_path_mm", c.longest_path_mm}});
+                    {"longest_path_mm", c.longest_path_mm},
+                    {"below_range_fraction", c.below_range_fraction}});
   bool toleranced = false;
   for (const auto& d : result.dimensions) toleranced |= d.decision.has_value();
   nlohmann::json radiographs = nlohmann::json::array();

@@ -13,7 +13,9 @@
 //     where the part differs from its model (a void, a chip, a burr, dirt);
 //   - paths through the fitted part longer than the material's calibrated
 //     range (its file's "calibrated_range_mm") by more than kBeyondRange of
-//     it: the curve is extrapolated there.
+//     it: the curve is extrapolated there; or more than kBelowRangeFraction
+//     of the pixels that see the part with paths below the range (a few are
+//     at every edge).
 #pragma once
 
 #include "xgauge/core/transform.h"
@@ -29,6 +31,7 @@ inline constexpr double kWorseRatio = 2.0;
 inline constexpr double kRegionSigmas = 5.0;
 inline constexpr int kRegionMinPixels = 6;
 inline constexpr double kBeyondRange = 0.01;
+inline constexpr double kBelowRangeFraction = 0.05;
 
 struct ResidualRegion {
   std::string radiograph;
@@ -51,6 +54,9 @@ struct RadiographCheck {
   // weighs as it should and a mean |residual| over the whole roi dilutes.
   double misfit_ratio = 0.0;
   double longest_path_mm = 0.0;  // through the fitted part, pixel means at the fit's level
+  // Of the roi's pixels with a path through the part, those whose path lies
+  // below the material's calibrated range (0 when it states none).
+  double below_range_fraction = 0.0;
 };
 
 struct SelfCheck {

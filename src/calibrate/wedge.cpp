@@ -209,7 +209,12 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
                        const Image& shifted_image, double thickness, double length) {
     if (!(u > 0.0)) return;
     WedgeCalibration moved;
-    curveFromRamp(job, shifted_image, ramp, thickness, length, moved);
+    try {
+      curveFromRamp(job, shifted_image, ramp, thickness, length, moved);
+    } catch (const Error& e) {
+      fail("the calibration does not survive its {} moved by its standard uncertainty ({}): {}",
+           influence, u, e.message());
+    }
     out.influences.push_back(
         {influence, value, u, largestDifference(material, moved.material, range)});
   };

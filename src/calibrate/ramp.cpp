@@ -29,12 +29,16 @@ double medianOf(const std::vector<double>& p, int first, int last) {
   return median(std::vector<double>(p.begin() + first, p.begin() + last + 1));
 }
 
-// The open beam's level in a profile: its brightest value, or 1 when even
-// that is below kOpenFloor (no open beam at all). A flat panel's
-// signal-dependent column darkening lowers the open beam in the columns
-// that see the wedge by about a percent, below a fixed threshold near 1.
+// The open beam's level in a profile: its brightest value, but at most 1 (a
+// noisy or over-corrected bright spot would lift it above the open beam
+// around it) and 1 when even that is below kOpenFloor (no open beam at all).
+// A flat panel's signal-dependent column darkening lowers the open beam in
+// the columns that see the wedge by about a percent, below a fixed threshold
+// near 1.
 constexpr double kOpenFloor = 0.95;
-double openLevel(double brightest) { return brightest >= kOpenFloor ? brightest : 1.0; }
+double openLevel(double brightest) {
+  return brightest >= kOpenFloor ? std::min(brightest, 1.0) : 1.0;
+}
 double brightestOf(const std::vector<double>& p) {
   double out = 0.0;
   for (double v : p) out = std::max(out, v);

@@ -13,13 +13,15 @@ ghost; `xgauge calibrate wedge` then calibrates from it with nothing given
 by hand but the machine file, the wedge's caliper dimensions and the
 material's composition with the tube voltage (its rate floor). The table
 compares the calibrated curve with the lab's true curve over 5 % to 95 % of
-the wedge's thickness and checks every rate against the floor.
+the wedge's thickness, checks every rate against the floor and compares the
+scatter the calibration found in the halo around the wedge with the lab's.
 
 Usage: scripts/calibration_grid.py [--xgauge build/apps/xgauge/xgauge]
        [--out out/calibration_grid] [--setups 24] [--quick] [--seed 1]
 --quick runs the first two set-ups only (what ctest runs). Exit status 0
 when every set-up calibrates within the acceptance (largest deviation at
-most 0.003, no rate below the floor), 1 otherwise, 2 on a usage error.
+most 0.003, no rate below the floor, the scatter's weight within 15 % and
+its width within 25 %), 1 otherwise, 2 on a usage error.
 """
 
 import argparse
@@ -36,6 +38,7 @@ NOMINAL = {"thickness": 20.0, "thin_end": 0.2, "pocket_left_top": 29.58, "pocket
            "wall_right_mid": 8.1, "pocket_left_mid": 29.7, "pocket_right_mid": 29.65}
 RAMP_LENGTH_MM = 90.0  # the block's length H, a constant of the model
 MAX_DEVIATION = 0.003
+MAX_WEIGHT_ERROR, MAX_SIGMA_ERROR = 0.15, 0.25  # relative: the scatter from the halo
 
 
 def rotation(rx, ry, rz):
@@ -203,6 +206,7 @@ def main():
         folder = out / setup["name"]
         prepare(setup, folder)
         status, deviation, floor_ok = "", float("nan"), None
+        scatter = None  # (weight, sigma px) found, when the calibration ran
         if not (folder / "data" / "truth.json").exists():
             if run([args.xgauge, "--quiet", "simulate", str(folder / "recipe.json"), "-o",
                     str(folder / "data")], folder / "simulate.log"):
@@ -226,16 +230,25 @@ def main():
                     deviation = max(deviation, abs(model - true_transmission(truth, x)))
                 floor = figures["uncertainty"]["rate_floor"]["per_mm"]
                 floor_ok = all(t["mu_per_mm"] >= floor for t in material["terms"])
-                ok = deviation <= MAX_DEVIATION and floor_ok
+                found = figures["scatter"]
+                scatter = (found["weight"], found["sigma_mm"] / setup["pitch_mm"])
+                scatter_ok = (
+                    abs(scatter[0] / setup["scatter_weight"] - 1) <= MAX_WEIGHT_ERROR
+                    and abs(scatter[1] / setup["scatter_sigma_px"] - 1) <= MAX_SIGMA_ERROR)
+                ok = deviation <= MAX_DEVIATION and floor_ok and scatter_ok
                 passed += ok
-                status = "ok" if ok else ("deviation" if floor_ok else "rate below floor")
-        rows.append((setup, deviation, floor_ok, status))
+                problems = [name for name, good in (("deviation", deviation <= MAX_DEVIATION),
+                                                    ("rate below floor", floor_ok),
+                                                    ("scatter", scatter_ok)) if not good]
+                status = "ok" if ok else ", ".join(problems)
+        rows.append((setup, deviation, floor_ok, scatter, status))
         print(f"{setup['name']}: {status}", file=sys.stderr, flush=True)
 
     print("| set-up | detector | pitch mm | principal point px | D mm | M | kV | filter "
-          "| turn, tilt deg | scatter w, sigma px | largest deviation | rates >= floor | result |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for setup, deviation, floor_ok, status in rows:
+          "| turn, tilt deg | scatter w, sigma px | found w, sigma px | largest deviation "
+          "| rates >= floor | result |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+    for setup, deviation, floor_ok, scatter, status in rows:
         f = setup["filters"]
         print(f"| {setup['name']} | {setup['size']}² | {setup['pitch_mm']} "
               f"| {setup['principal_point_px'][0]:.0f}, {setup['principal_point_px'][1]:.0f} "
@@ -244,10 +257,12 @@ def main():
               f"| {f[0]['thickness_mm'] if f else '-'}{' mm Cu' if f else ''} "
               f"| {setup['turn_deg']:.0f}, {setup['tilt_deg'][0]:+.1f}/{setup['tilt_deg'][1]:+.1f} "
               f"| {setup['scatter_weight']:.3f}, {setup['scatter_sigma_px']:.0f} "
+              f"| {'-' if scatter is None else f'{scatter[0]:.3f}, {scatter[1]:.0f}'} "
               f"| {'-' if math.isnan(deviation) else f'{deviation:.4f}'} "
               f"| {'-' if floor_ok is None else ('yes' if floor_ok else 'NO')} | {status} |")
     print(f"\n{passed} of {len(rows)} set-ups calibrate within {MAX_DEVIATION} "
-          f"(5 % to 95 % of the wedge's thickness) with every rate above the floor")
+          f"(5 % to 95 % of the wedge's thickness) with every rate above the floor and the "
+          f"scatter within {MAX_WEIGHT_ERROR:.0%} (weight) and {MAX_SIGMA_ERROR:.0%} (width)")
     return 0 if passed == len(rows) else 1
 
 

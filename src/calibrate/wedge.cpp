@@ -128,7 +128,8 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
   if (auto u = wedge.find("ramp_length_uncertainty_mm"))
     job.ramp_length_uncertainty_mm = u->number(0.0, 10.0);
   if (auto floor = root.find("rate_floor")) job.rate_floor = RateFloor::fromConfig(*floor);
-  if (auto scatter = root.find("scatter")) job.scatter = ScatterModel::fromConfig(*scatter);
+  if (auto scatter = root.find("scatter"))
+    job.scatter = ScatterModel::fromConfig(*scatter), job.estimate_scatter = false;
   if (auto ramp = root.find("ramp")) {
     if (auto columns = ramp->find("columns")) {
       if (columns->size() != 2) columns->fail("expected [begin, end]");
@@ -182,8 +183,33 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
                           spec.white_region, ClampPolicy::kNone, name)
           .image;
   Image image = normalized;
-  if (job.scatter.enabled())
-    image = job.scatter.remove(image, machine.pitch_u_mm, spec.white_region);
+  out.normalized = normalized;  // what a failure below shows
+  if (job.estimate_scatter) {
+    out.step = "estimate the scatter";
+    HaloFit halo;
+    try {
+      halo = fitScatterHalo(normalized, machine.pitch_u_mm, name);
+    } catch (const Error&) {
+      // A radiograph without a wedge says so rather than that it has no halo.
+      out.step = "find the ramp";
+      detectRamp(normalized, job.ramp, name);
+      out.step = "estimate the scatter";
+      throw;
+    }
+    spdlog::info(
+        "{}: scatter from the halo around the wedge: weight {:.4f} +- {:.4f}, sigma {:.1f} +- "
+        "{:.1f} mm; column darkening {:.4f} per unit attenuation",
+        name, halo.scatter.weight, halo.scatter.weight_uncertainty, halo.scatter.sigma_mm,
+        halo.scatter.sigma_uncertainty_mm, halo.column_darkening);
+    image = std::move(halo.primary);
+    halo.primary = Image();
+    out.scatter = halo.scatter;
+    out.halo = std::move(halo);
+  } else {
+    out.scatter = job.scatter;
+    if (job.scatter.enabled())
+      image = job.scatter.remove(image, machine.pitch_u_mm, spec.white_region);
+  }
   out.normalized = image;
 
   // 2. The ramp.
@@ -218,16 +244,22 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
     out.influences.push_back(
         {influence, value, u, largestDifference(material, moved.material, range)});
   };
-  if (job.scatter.enabled()) {
-    ScatterModel w = job.scatter, s = job.scatter;
-    w.weight += job.scatter.weight_uncertainty;
-    s.sigma_mm += job.scatter.sigma_uncertainty_mm;
-    propagate("scatter weight", job.scatter.weight, job.scatter.weight_uncertainty,
-              w.remove(normalized, machine.pitch_u_mm, spec.white_region), job.max_thickness_mm,
-              job.ramp_length_mm);
-    propagate("scatter sigma_mm", job.scatter.sigma_mm, job.scatter.sigma_uncertainty_mm,
-              s.remove(normalized, machine.pitch_u_mm, spec.white_region), job.max_thickness_mm,
-              job.ramp_length_mm);
+  const ScatterModel& scatter = out.scatter;
+  if (scatter.enabled()) {
+    // The radiograph without a scatter of another weight or width: the
+    // halo's removal (with its darkening) or the job's.
+    auto without = [&](double weight, double sigma_mm) {
+      if (out.halo) return out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
+      ScatterModel moved = scatter;
+      moved.weight = weight, moved.sigma_mm = sigma_mm;
+      return moved.remove(normalized, machine.pitch_u_mm, spec.white_region);
+    };
+    propagate("scatter weight", scatter.weight, scatter.weight_uncertainty,
+              without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),
+              job.max_thickness_mm, job.ramp_length_mm);
+    propagate("scatter sigma_mm", scatter.sigma_mm, scatter.sigma_uncertainty_mm,
+              without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
+              job.max_thickness_mm, job.ramp_length_mm);
   }
   propagate("wedge max_thickness_mm", job.max_thickness_mm, job.max_thickness_uncertainty_mm, image,
             job.max_thickness_mm + job.max_thickness_uncertainty_mm, job.ramp_length_mm);

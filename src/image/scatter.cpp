@@ -16,6 +16,13 @@ ScatterModel ScatterModel::fromConfig(const ConfigNode& node) {
   return out;
 }
 
+nlohmann::json ScatterModel::toJson() const {
+  return {{"weight", weight},
+          {"sigma_mm", sigma_mm},
+          {"weight_uncertainty", weight_uncertainty},
+          {"sigma_uncertainty_mm", sigma_uncertainty_mm}};
+}
+
 Image ScatterModel::apply(Image image, double pitch_mm) const {
   return scatterBlur(std::move(image), weight, sigmaPx(pitch_mm));
 }

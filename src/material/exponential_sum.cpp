@@ -28,6 +28,9 @@ ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
   const std::string description = node.get<std::string>("description", "");
   double uncertainty = kDefaultTransmissionUncertainty;
   if (auto u = node.find("uncertainty")) uncertainty = u->at("transmission").number(0.0, 0.5);
+  // A wedge calibration's detector scatter (calibrate/wedge.h): read by the
+  // measurement that uses the material (measure/inputs.cpp), not by the curve.
+  static_cast<void>(node.find("scatter"));
   std::optional<std::array<double, 2>> range;
   if (auto r = node.find("calibrated_range_mm")) {
     if (r->size() != 2) r->fail("calibrated_range_mm: expected [low, high] in mm");

@@ -4,6 +4,8 @@
 #include "xgauge/image/pyramid.h"
 #include "xgauge/image/tiff.h"
 
+#include <spdlog/spdlog.h>
+
 namespace xgauge {
 
 namespace {
@@ -122,6 +124,13 @@ MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
   if (!in.job.material_file.empty()) {
     const ConfigNode material = loadInputConfig(in.job.material_file, in.sha256);
     in.material = ExponentialSum::fromConfig(material);
+    // The detector's scatter its wedge calibration found, for a job without
+    // a "scatter" of its own.
+    if (auto found = material.find("scatter"); found && !root.has("scatter")) {
+      in.job.scatter = ScatterModel::fromConfig(*found);
+      spdlog::info("{}: the scatter its calibration found: weight {:.4f}, sigma {:.1f} mm",
+                   in.job.material_file.string(), in.job.scatter.weight, in.job.scatter.sigma_mm);
+    }
     material.finish();
   }
   in.radiographs = loadRadiographs(in.job, in.machine, in.sha256);

@@ -224,6 +224,39 @@ TEST_F(Measure, TheGaussNewtonScheduleRecoversANoiseFreePrismJaw) {
   EXPECT_LT(joint_renders, 400);
 }
 
+// A material.json from a wedge calibration carries the detector's scatter;
+// a job without a "scatter" of its own uses it, a job with one keeps its own.
+TEST_F(Measure, AJobWithoutScatterUsesTheOneItsMaterialCarries) {
+  Machine machine;
+  machine.columns = machine.rows = 64;
+  machine.pitch_u_mm = machine.pitch_v_mm = 0.5;
+  machine.cx_px = machine.cy_px = 32.0;
+  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+  writeTiff(dir_ / "a.tif", Image(64, 64, 1.0f), TiffFormat::kFloat32);
+  std::ofstream(dir_ / "material.json") << R"({"model": "exponential_sum",
+    "terms": [{"weight": 1, "mu_per_mm": 0.05}],
+    "scatter": {"weight": 0.12, "sigma_mm": 40, "weight_uncertainty": 0.01, "sigma_uncertainty_mm": 5}})";
+  auto load = [&](const std::string& scatter) {
+    std::ofstream(dir_ / "job.json") << R"({"part": ")" + kRoot + R"(/parts/cuboid.json",
+      "machine": "machine.json", "material": "material.json", )" + scatter + R"(
+      "radiographs": [{"name": "a", "image": "a.tif", "white_region": [0, 0, 8, 8], "roi": [8, 8, 40, 40]}],
+      "pose_bounds": {"rotation_deg": [[-5, 5], [-5, 5], [-5, 5]], "centre_mm": [[-9, 9], [-9, 9], [390, 410]]}})";
+    const ConfigNode root = ConfigNode::loadFile(dir_ / "job.json");
+    MeasurementInputs in = loadMeasurementInputs(root, dir_ / "job.json", true);
+    root.finish();
+    return in.job.scatter;
+  };
+  const ScatterModel found = load("");
+  EXPECT_EQ(found.weight, 0.12);
+  EXPECT_EQ(found.sigma_mm, 40.0);
+  EXPECT_EQ(found.weight_uncertainty, 0.01);
+  EXPECT_EQ(found.sigma_uncertainty_mm, 5.0);
+  const ScatterModel own = load(R"("scatter": {"weight": 0, "sigma_mm": 1},)");
+  EXPECT_FALSE(own.enabled());
+  // The curve itself reads the same file without complaint.
+  EXPECT_EQ(ExponentialSum::load(dir_ / "material.json").terms().size(), 1u);
+}
+
 TEST_F(Measure, FreeMaterialParametersStandForTheMaterial) {
   Machine machine;
   machine.columns = machine.rows = 64;

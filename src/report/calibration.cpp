@@ -13,7 +13,7 @@
 namespace xgauge {
 
 void writeCalibrationOutputs(const std::filesystem::path& folder, const ExponentialSum& material,
-                             nlohmann::json figures, const CalibrationData& data,
+                             const ScatterModel* scatter, nlohmann::json figures, const CalibrationData& data,
                              const TrueCurve& true_curve, const nlohmann::json& pictures,
                              bool html_report) {
   createOutputFolder(folder);
@@ -65,7 +65,9 @@ void writeCalibrationOutputs(const std::filesystem::path& folder, const Exponent
                 "xgauge calibration: " + figures.value("job", std::string()), page);
   }
   writeFileAtomically(folder / "calibration.json", figures.dump(2) + "\n");
-  writeFileAtomically(folder / "material.json", material.toJson().dump(2) + "\n");
+  nlohmann::json material_file = material.toJson();
+  if (scatter && scatter->enabled()) material_file["scatter"] = scatter->toJson();
+  writeFileAtomically(folder / "material.json", material_file.dump(2) + "\n");
 }
 
 namespace {
@@ -86,15 +88,36 @@ nlohmann::json wedgePictures(const WedgeCalibrationJob& job, const WedgeCalibrat
         {{"label", result.rows.empty() ? "ramp found" : "ramp rows used"},
          {"box", {ramp.column_begin, lo, ramp.column_end - ramp.column_begin, hi - lo}}});
   }
+  if (result.halo) {
+    const PixelRect& box = result.halo->shadow;
+    marks.push_back({{"label", "the wedge's shadow (outside: the halo fitted)"},
+                     {"box", {box.x, box.y, box.width, box.height}}});
+  }
   const PixelRect& white = job.radiograph.white_region;
   marks.push_back(
       {{"label", "white region"}, {"box", {white.x, white.y, white.width, white.height}}});
   return {{"kind", "wedge"},
-          {"scatter_removed", job.scatter.enabled()},
+          {"scatter_removed", result.scatter.enabled()},
           {"radiographs",
            nlohmann::json::array({{{"name", job.radiograph.image.filename().string()},
                                    {"measured", greyPicture(image, image.rect(), {0.0, 1.05}, 800)},
                                    {"marks", marks}}})}};
+}
+
+// The scatter taken out: the job's, or the halo's fit with its search.
+nlohmann::json wedgeScatterJson(const WedgeCalibration& result) {
+  nlohmann::json out = result.scatter.toJson();
+  out["estimated"] = result.halo.has_value();
+  if (const auto& halo = result.halo) {
+    const PixelRect& box = halo->shadow;
+    out["column_darkening"] = halo->column_darkening;
+    out["open_beam_residual_rms"] = halo->rms;
+    out["open_pixels"] = halo->open_pixels;
+    out["binning"] = halo->binning;
+    out["shadow_box"] = {box.x, box.y, box.width, box.height};
+    out["search"] = {{"sigma_mm", halo->sigma_mm}, {"residual_rms", halo->residual_rms}};
+  }
+  return out;
 }
 
 nlohmann::json rampJson(const WedgeCalibration& result) {
@@ -161,6 +184,7 @@ void writeFailedWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCali
                 {"job", job.file.string()},
                 {"radiograph", job.radiograph.image.string()},
                 {"ramp", rampJson(partial)},
+                {"scatter", wedgeScatterJson(partial)},
                 {"table",
                  {{"row", partial.rows},
                   {"path_mm", partial.path_mm},
@@ -227,6 +251,7 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
                               {"ramp_length_mm", job.ramp_length_mm}}},
                             {"fit", toJson(result.fit)},
                             {"eq_3_7", {{"x0_mm", result.x0_mm}, {"x_max_mm", result.x_max_mm}}},
+                            {"scatter", wedgeScatterJson(result)},
                             {"uncertainty", wedgeUncertaintyJson(job, result)},
                             {"material", result.material.toJson()},
                             {"table",
@@ -241,8 +266,8 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
   data.path_mm = shifted;
   data.transmission = result.transmission;
   data.x_max_mm = result.x_max_mm;
-  writeCalibrationOutputs(folder, result.material, figures, data, true_curve, pictures,
-                          html_report);
+  writeCalibrationOutputs(folder, result.material, &result.scatter, figures, data, true_curve,
+                          pictures, html_report);
 }
 
 void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& result,
@@ -282,7 +307,7 @@ void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& 
   data.path_mm = result.path_mm;
   data.transmission = result.transmission;
   data.x_max_mm = result.max_path_mm;
-  writeCalibrationOutputs(folder, result.material, figures, data, true_curve, pictures,
+  writeCalibrationOutputs(folder, result.material, nullptr, figures, data, true_curve, pictures,
                           html_report);
   writeMeasurementOutputs(model, fitted, folder / "poses", false, nullptr, std::move(simulated));
 }

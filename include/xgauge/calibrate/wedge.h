@@ -2,7 +2,10 @@
 // automatically:
 //   1. normalize (dark, flat, white region) and remove the detector's
 //      scintillator scatter (image/scatter.h), so that the curve is
-//      the scatter-free I(x) that the forward model pairs with its own scatter;
+//      the scatter-free I(x) that the forward model pairs with its own scatter:
+//      the job's "scatter" or, when it has none, the scatter and the panel's
+//      column darkening fitted to the halo around the wedge (halo.h), which
+//      material.json then carries for the measurements that use it;
 //   2. find the ramp's columns and its thin and thick end rows (ramp.h);
 //   3. map every pixel of the band to its path length through the wedge by
 //      the machine geometry, not by a straight line in rows. Both ends of the
@@ -43,7 +46,9 @@
 //                      (standard uncertainties, default 0.01 and 0.02 mm: a
 //                      caliper's)
 //   rate_floor         optional {"compound", "density_g_cm3", "tube_kv"} (curve.h)
-//   scatter            optional {"weight": w, "sigma_mm": s} (measure/job.h)
+//   scatter            optional {"weight": w, "sigma_mm": s} (measure/job.h);
+//                      without it the scatter is estimated from the halo, and
+//                      {"weight": 0, "sigma_mm": 1} says the detector has none
 //   ramp               optional overrides: {"columns": [begin, end],
 //                      "rows": [thin end, thick end]} (continuous row coordinates)
 //   max_terms          optional, 1 to 4 (default 4)
@@ -51,6 +56,7 @@
 #pragma once
 
 #include "xgauge/calibrate/curve.h"
+#include "xgauge/calibrate/halo.h"
 #include "xgauge/calibrate/ramp.h"
 #include "xgauge/image/image.h"
 #include "xgauge/material/exponential_sum.h"
@@ -76,6 +82,7 @@ struct WedgeCalibrationJob {
   double ramp_length_uncertainty_mm = 0.02;
   std::optional<RateFloor> rate_floor;
   ScatterModel scatter;
+  bool estimate_scatter = true;  // no "scatter" key: fit it to the halo
   RampOptions ramp;
   int max_terms = 4;
   int margin_rows = 4;
@@ -105,6 +112,9 @@ struct WedgeCalibration {
   ExponentialSum material{{{1.0, 0.0}}};
   double table_uncertainty = 0.0;
   std::vector<CurveInfluence> influences;
+  // The scatter taken out of the radiograph: the job's or the halo's.
+  ScatterModel scatter;
+  std::optional<HaloFit> halo;  // when estimated (its primary image moved to `normalized`)
   double seconds = 0.0;
   Image normalized;  // the radiograph as the ramp was found in (scatter removed)
   // The step under way or, after a success, "done": what a failure names.

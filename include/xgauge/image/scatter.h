@@ -34,6 +34,8 @@ struct ScatterModel {
   // optional "weight_uncertainty", "sigma_uncertainty_mm"} (Error at the node
   // otherwise).
   static ScatterModel fromConfig(const ConfigNode& node);
+  // The same keys, all four written (a material.json's "scatter").
+  nlohmann::json toJson() const;
 
   // The forward formula at one pixel: intensity I and its blur G(I) there.
   double mix(double intensity, double blurred) const {

@@ -1,0 +1,72 @@
+// The detector's scintillator scatter (image/scatter.h) estimated from a
+// calibration shot, so that nobody has to type its weight and width into a
+// job: the halo it leaves in the open beam around a dark part.
+//
+// In the open beam the primary intensity is 1 everywhere, so whatever varies
+// there comes from the scatter (the dark part's blur lowers the open beam
+// near it) and from the panel's signal-dependent column darkening (a column
+// reads lower in proportion to the attenuation along it). With P the primary
+// image, g = G(P, sigma) its Gaussian blur and A the mean attenuation
+// 1 - n of the pixel's column, a normalized radiograph reads
+//   n = a P + b g + c A,   a = (1 - w) / open, b = w / open, c = -s / open
+// (`open` the white region's level). For a given sigma this is linear in
+// (a, b, c) over the open-beam pixels (P = 1); P inside the part's shadow comes
+// from the fixed point P = (n - b g - c A) / a. Sigma is searched on a
+// logarithmic grid and refined; the weight is w = b / (a + b) and the column
+// darkening s = -c / (a + b).
+//
+// The open beam is everything outside the part's shadow: the bounding box of
+// the image's sharp edges (a part's outline steps by far more per pixel than a
+// halo of a few hundred pixels can), widened by a margin. The estimate works
+// on a copy binned to at most `max_side` pixels (the halo is smooth; binning
+// changes the blur's width by a fraction of a binned pixel).
+#pragma once
+
+#include "xgauge/image/image.h"
+#include "xgauge/image/scatter.h"
+
+#include <string>
+#include <vector>
+
+namespace xgauge {
+
+struct HaloOptions {
+  int max_side = 512;  // bin by 2 until both sides are at most this
+  // The search range of the width: from the larger of min_sigma_px
+  // (full-size pixels) and min_sigma_mm (narrower light spread is the
+  // detector's unsharpness, not a halo) ...
+  double min_sigma_px = 4.0;
+  double min_sigma_mm = 2.0;
+  double max_sigma_fraction = 1.5;  // ... up to this fraction of the longer side
+  double min_open_fraction = 0.05;  // of the image outside the shadow's box
+};
+
+struct HaloFit {
+  ScatterModel scatter;           // weight and sigma_mm with their uncertainties
+  double column_darkening = 0.0;  // s: a column's drop per unit mean attenuation
+  PixelRect shadow;               // the part's shadow box (full-size pixels, margin included)
+  int binning = 1;                // full-size pixels per binned pixel along each side
+  int open_pixels = 0;            // binned open-beam pixels the fit used
+  double rms = 0.0;               // residual of the open beam at the optimum
+  // The search: sigma_mm and the open beam's residual rms at each.
+  std::vector<double> sigma_mm, residual_rms;
+  double open_level = 1.0;  // 1 / (a + b): the open beam's level in `normalized`
+  // The radiograph without the scatter and the darkening: (n - b g - c A) / a.
+  Image primary;
+
+  // That primary for another weight and width (the same darkening and open
+  // level): how a curve's uncertainty propagates the halo's.
+  Image primaryWith(const Image& normalized, double pitch_mm, double weight, double sigma_mm) const;
+};
+
+// Fits the halo of `normalized` (a radiograph divided by its flat field, its
+// open beam near 1), pixels of `pitch_mm`. `name` is
+// the file the messages name. Throws Error, naming the file and the figures,
+// when there is too little open beam, the part has no sharp outline, or the
+// halo does not decide the width (optimum at the end of the search range, or
+// a width or weight uncertain by more than half its value): the job must then
+// give its "scatter".
+HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::string& name,
+                       const HaloOptions& options = {});
+
+}  // namespace xgauge

@@ -1,0 +1,277 @@
+#include "xgauge/calibrate/halo.h"
+
+#include "xgauge/core/error.h"
+#include "xgauge/image/blur.h"
+#include "xgauge/image/pyramid.h"
+#include "xgauge/image/stats.h"
+
+#include <spdlog/spdlog.h>
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <cmath>
+
+namespace xgauge {
+
+namespace {
+
+double at(const Image& image, int x, int y) { return static_cast<double>(image(x, y)); }
+
+// The model's coefficients: n = a P + b G(P) + c A.
+struct Coefficients {
+  double a = 1.0, b = 0.0, c = 0.0;
+};
+
+// Each column's mean attenuation 1 - n (the column darkening's regressor).
+std::vector<double> columnAttenuation(const Image& n) {
+  std::vector<double> out(static_cast<size_t>(n.width()), 0.0);
+  for (int y = 0; y < n.height(); ++y)
+    for (int x = 0; x < n.width(); ++x) out[static_cast<size_t>(x)] += 1.0 - at(n, x, y);
+  for (double& value : out) value /= n.height();
+  return out;
+}
+
+// P = (n - b G(P) - c A) / a: one step of the fixed point, which contracts by
+// about b / a = w / (1 - w) per step.
+void primaryStep(const Image& n, const std::vector<double>& attenuation, const Coefficients& k,
+                 const Image& blurred, Image& primary) {
+  for (int y = 0; y < n.height(); ++y)
+    for (int x = 0; x < n.width(); ++x)
+      primary(x, y) = static_cast<float>(
+          (at(n, x, y) - k.b * at(blurred, x, y) - k.c * attenuation[static_cast<size_t>(x)]) /
+          k.a);
+}
+
+// Enough steps to leave about 1e-5 of the scatter for w up to 0.25.
+constexpr int kFixedPointSteps = 9;
+
+Image solvePrimary(const Image& n, const std::vector<double>& attenuation, const Coefficients& k,
+                   double sigma_px) {
+  Image primary = n;
+  for (int step = 0; step < kFixedPointSteps; ++step)
+    primaryStep(n, attenuation, k, gaussianBlur(primary, sigma_px), primary);
+  return primary;
+}
+
+// The part's shadow: the bounding box of the image's sharp edges (forward
+// differences above a quarter of their 99.9th percentile and ten times their
+// median, the noise's), its outermost 0.2 % on each side dropped as strays,
+// widened by 2 % of the longer side.
+PixelRect shadowBox(const Image& n, const std::string& name) {
+  Image gradient(n.width(), n.height(), 0.0f);
+  for (int y = 0; y + 1 < n.height(); ++y)
+    for (int x = 0; x + 1 < n.width(); ++x)
+      gradient(x, y) = std::max(std::abs(n(x + 1, y) - n(x, y)), std::abs(n(x, y + 1) - n(x, y)));
+  const double top = percentileOf(gradient, 99.9), noise = percentileOf(gradient, 50.0);
+  if (!(top > 20.0 * noise && top > 0.005))
+    fail(
+        "{}: the scatter's halo needs a part with a sharp outline, and this radiograph has "
+        "none (its steepest steps, {:.4f} per pixel, are not above its noise, {:.4f}): give the "
+        "job's \"scatter\"",
+        name, top, noise);
+  const float threshold = static_cast<float>(std::max(0.25 * top, 10.0 * noise));
+  std::vector<int> xs, ys;
+  for (int y = 0; y < n.height(); ++y)
+    for (int x = 0; x < n.width(); ++x)
+      if (gradient(x, y) > threshold) xs.push_back(x), ys.push_back(y);
+  auto quantile = [](std::vector<int>& v, double q) {
+    const auto at = v.begin() + static_cast<std::ptrdiff_t>(q * static_cast<double>(v.size() - 1));
+    std::nth_element(v.begin(), at, v.end());
+    return *at;
+  };
+  const int margin =
+      std::max(2, static_cast<int>(std::lround(0.02 * std::max(n.width(), n.height()))));
+  const int x0 = quantile(xs, 0.002) - margin, x1 = quantile(xs, 0.998) + 1 + margin;
+  const int y0 = quantile(ys, 0.002) - margin, y1 = quantile(ys, 0.998) + 1 + margin;
+  return PixelRect{x0, y0, x1 - x0, y1 - y0}.intersect(n.rect());
+}
+
+// The fit at one width: (a, b, c) by least squares over the open beam,
+// alternated with the fixed point for P.
+struct WidthFit {
+  double sigma_px = 0.0;  // binned pixels
+  Coefficients k;
+  double rms = 0.0;
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+};
+
+WidthFit fitAtWidth(const Image& n, const std::vector<double>& attenuation,
+                    const std::vector<int>& open, double sigma_px) {
+  WidthFit out;
+  out.sigma_px = sigma_px;
+  Image primary = n;
+  const auto values = n.pixels();
+  Eigen::Matrix3d normal;
+  for (int step = 0; step < kFixedPointSteps; ++step) {
+    const Image blurred = gaussianBlur(primary, sigma_px);
+    const auto g = blurred.pixels();
+    normal.setZero();
+    Eigen::Vector3d right = Eigen::Vector3d::Zero();
+    for (const int i : open) {
+      const Eigen::Vector3d row(1.0, static_cast<double>(g[static_cast<size_t>(i)]),
+                                attenuation[static_cast<size_t>(i % n.width())]);
+      normal += row * row.transpose();
+      right += row * static_cast<double>(values[static_cast<size_t>(i)]);
+    }
+    const Eigen::Vector3d k = normal.completeOrthogonalDecomposition().solve(right);
+    out.k = {k(0), k(1), k(2)};
+    if (!(out.k.a > 0.05)) break;  // no primary left to solve for: the width is far off
+    if (step + 1 == kFixedPointSteps) {
+      double sum = 0.0;
+      for (const int i : open) {
+        const double r = static_cast<double>(values[static_cast<size_t>(i)]) - k(0) -
+                         k(1) * static_cast<double>(g[static_cast<size_t>(i)]) -
+                         k(2) * attenuation[static_cast<size_t>(i % n.width())];
+        sum += r * r;
+      }
+      out.rms = std::sqrt(sum / static_cast<double>(open.size()));
+      out.covariance = out.rms * out.rms * normal.completeOrthogonalDecomposition().pseudoInverse();
+      return out;
+    }
+    primaryStep(n, attenuation, out.k, blurred, primary);
+  }
+  out.rms = std::numeric_limits<double>::infinity();
+  return out;
+}
+
+double weightOf(const Coefficients& k) { return k.b / (k.a + k.b); }
+
+}  // namespace
+
+Image HaloFit::primaryWith(const Image& normalized, double pitch_mm, double weight,
+                           double sigma) const {
+  const double c = -column_darkening / open_level;
+  return solvePrimary(normalized, columnAttenuation(normalized),
+                      {(1.0 - weight) / open_level, weight / open_level, c}, sigma / pitch_mm);
+}
+
+HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::string& name,
+                       const HaloOptions& options) {
+  if (!(pitch_mm > 0.0)) fail("{}: the pixel pitch must be positive, got {}", name, pitch_mm);
+  HaloFit out;
+  Image n = normalized;
+  while (std::max(n.width(), n.height()) > options.max_side) n = downsample2x(n), out.binning *= 2;
+  const double binned_pitch = pitch_mm * out.binning;
+
+  // The open beam: outside the shadow's box, gross outliers (a fixture, a
+  // collimator's edge) left out.
+  const PixelRect box = shadowBox(n, name);
+  spdlog::debug("{}: shadow box {} of {}x{} binned by {}", name, toString(box), n.width(),
+                n.height(), out.binning);
+  out.shadow = {box.x * out.binning, box.y * out.binning, box.width * out.binning,
+                box.height * out.binning};
+  std::vector<int> open;
+  for (int y = 0; y < n.height(); ++y)
+    for (int x = 0; x < n.width(); ++x) {
+      const bool inside = x >= box.x && x < box.right() && y >= box.y && y < box.bottom();
+      if (!inside && n(x, y) > 0.5f && n(x, y) < 1.5f) open.push_back(y * n.width() + x);
+    }
+  out.open_pixels = static_cast<int>(open.size());
+  const double open_fraction = static_cast<double>(open.size()) / static_cast<double>(n.size());
+  if (open_fraction < options.min_open_fraction)
+    fail(
+        "{}: the scatter's halo needs open beam around the part, and only {:.1f} % of the "
+        "radiograph lies outside the part's shadow {} (at least {:.0f} %): give the job's "
+        "\"scatter\"",
+        name, 100.0 * open_fraction, toString(out.shadow), 100.0 * options.min_open_fraction);
+
+  // The width: a logarithmic grid, then golden sections around its best point.
+  const std::vector<double> attenuation = columnAttenuation(n);
+  const double low = std::max(options.min_sigma_px, options.min_sigma_mm / pitch_mm) / out.binning;
+  const double high = options.max_sigma_fraction * std::max(n.width(), n.height());
+  constexpr int kGrid = 24;
+  std::vector<WidthFit> grid;
+  for (int i = 0; i < kGrid; ++i) {
+    const double sigma = low * std::pow(high / low, i / (kGrid - 1.0));
+    grid.push_back(fitAtWidth(n, attenuation, open, sigma));
+    out.sigma_mm.push_back(sigma * binned_pitch);
+    out.residual_rms.push_back(grid.back().rms);
+  }
+  const auto best_at = static_cast<int>(
+      std::min_element(grid.begin(), grid.end(),
+                       [](const WidthFit& p, const WidthFit& q) { return p.rms < q.rms; }) -
+      grid.begin());
+  WidthFit best = grid[static_cast<size_t>(best_at)];
+  auto weightUncertainty = [](const WidthFit& fit) {
+    const double s = fit.k.a + fit.k.b;
+    const Eigen::Vector2d gradient(-fit.k.b / (s * s), fit.k.a / (s * s));
+    return std::sqrt(std::max(0.0, gradient.dot(fit.covariance.topLeftCorner<2, 2>() * gradient)));
+  };
+  // No halo worth the name: a detector without scatter (or too little to
+  // see), whose width is then arbitrary and does not matter; or a blur no
+  // wider than the narrowest width searched, which is the detector's
+  // unsharpness rather than a halo.
+  if (best_at == 0 || weightOf(best.k) < std::max(0.003, 3.0 * weightUncertainty(best))) {
+    spdlog::warn(
+        "{}: no measurable scatter halo (weight {:.4f} +- {:.4f} at sigma {:.3g} mm, the search "
+        "from {:.3g} mm): scatter left out",
+        name, weightOf(best.k), weightUncertainty(best), best.sigma_px * binned_pitch,
+        low * binned_pitch);
+    out.column_darkening = -best.k.c / (best.k.a + best.k.b);
+    out.open_level = 1.0 / (best.k.a + best.k.b);
+    out.rms = best.rms;
+    out.scatter.weight_uncertainty = weightUncertainty(best);
+    // Without a halo G(P) is 1 in the open beam: a + b is its level.
+    out.primary = solvePrimary(normalized, columnAttenuation(normalized),
+                               {best.k.a + best.k.b, 0.0, best.k.c}, 1.0);
+    return out;
+  }
+  if (best_at == kGrid - 1)
+    fail(
+        "{}: the scatter's halo does not decide its width: the open beam's residual is smallest "
+        "at the end of the search, sigma = {:.3g} mm ({:.0f} px): give the job's \"scatter\"",
+        name, best.sigma_px * binned_pitch, best.sigma_px * out.binning);
+  double lo = std::log(grid[static_cast<size_t>(best_at - 1)].sigma_px);
+  double hi = std::log(grid[static_cast<size_t>(best_at + 1)].sigma_px);
+  const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
+  auto at = [&](double t) { return fitAtWidth(n, attenuation, open, std::exp(t)); };
+  double t1 = hi - ratio * (hi - lo), t2 = lo + ratio * (hi - lo);
+  WidthFit f1 = at(t1), f2 = at(t2);
+  for (int i = 0; i < 14; ++i) {
+    if (f1.rms < f2.rms)
+      hi = t2, t2 = t1, f2 = f1, t1 = hi - ratio * (hi - lo), f1 = at(t1);
+    else
+      lo = t1, t1 = t2, f1 = f2, t2 = lo + ratio * (hi - lo), f2 = at(t2);
+  }
+  if (f1.rms < best.rms || f2.rms < best.rms) best = f1.rms < f2.rms ? f1 : f2;
+
+  // Uncertainties: the width's from the curvature of the residual sum of
+  // squares S(ln sigma) (a change of S by 2 rms^2 is one standard deviation),
+  // the weight's from the least squares at that width combined with its
+  // change across the width's uncertainty.
+  const double t = std::log(best.sigma_px), h = 0.05;
+  const size_t count = open.size();
+  auto sum = [&](const WidthFit& fit) { return fit.rms * fit.rms * static_cast<double>(count); };
+  const WidthFit minus = at(t - h), plus = at(t + h);
+  const double curvature = (sum(plus) - 2.0 * sum(best) + sum(minus)) / (h * h);
+  const double u_log_sigma =
+      curvature > 0.0 ? std::sqrt(2.0 * best.rms * best.rms / curvature) : HUGE_VAL;
+  const WidthFit wider = at(t + std::min(u_log_sigma, 0.5)),
+                 narrower = at(t - std::min(u_log_sigma, 0.5));
+  const double weight = weightOf(best.k);
+  const double u_weight =
+      std::hypot(weightUncertainty(best), 0.5 * std::abs(weightOf(wider.k) - weightOf(narrower.k)));
+  const double sigma_mm = best.sigma_px * binned_pitch;
+  if (!(u_log_sigma < 0.5) || !(u_weight < 0.5 * weight) || !(weight < 0.9))
+    fail(
+        "{}: the scatter's halo does not decide the scatter: weight {:.4f} +- {:.4f}, sigma "
+        "{:.3g} mm +- {:.0f} % (the open beam around the part is too small or too far from it): "
+        "give the job's \"scatter\"",
+        name, weight, u_weight, sigma_mm, 100.0 * (std::exp(std::min(u_log_sigma, 5.0)) - 1.0));
+
+  out.scatter.weight = weight;
+  out.scatter.sigma_mm = sigma_mm;
+  // Never more certain than the defaults of a typed-in scatter: the residual
+  // also holds the panel's fixed pattern and the ghost of the previous shot,
+  // which are correlated over many pixels.
+  out.scatter.weight_uncertainty = std::max(u_weight, 0.05 * weight);
+  out.scatter.sigma_uncertainty_mm = std::max(sigma_mm * u_log_sigma, 0.1 * sigma_mm);
+  out.column_darkening = -best.k.c / (best.k.a + best.k.b);
+  out.open_level = 1.0 / (best.k.a + best.k.b);
+  out.rms = best.rms;
+  out.primary =
+      solvePrimary(normalized, columnAttenuation(normalized), best.k, sigma_mm / pitch_mm);
+  return out;
+}
+
+}  // namespace xgauge

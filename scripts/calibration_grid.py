@@ -218,6 +218,11 @@ def main():
             if run([args.xgauge, "--quiet", "calibrate", "wedge", str(folder / "job.json"), "-o",
                     str(result), "--no-report"], folder / "calibrate.log"):
                 status = "failed: " + last_error(folder / "calibrate.log")
+                # The scatter, when the halo was fitted before the step that failed.
+                failed = result / "failed_calibration.json"
+                found = json.loads(failed.read_text()).get("scatter") if failed.exists() else None
+                if found and found.get("estimated"):
+                    scatter = (found["weight"], found["sigma_mm"] / setup["pitch_mm"])
             else:
                 material = json.loads((result / "material.json").read_text())
                 figures = json.loads((result / "calibration.json").read_text())

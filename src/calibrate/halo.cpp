@@ -174,6 +174,20 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
         "radiograph lies outside the part's shadow {} (at least {:.0f} %): give the job's "
         "\"scatter\"",
         name, 100.0 * open_fraction, toString(out.shadow), 100.0 * options.min_open_fraction);
+  {
+    // A part that fills the radiograph leaves pieces of itself outside the
+    // box of its sharp edges: that is no open beam.
+    std::vector<float> levels;
+    for (const int i : open) levels.push_back(n.pixels()[static_cast<size_t>(i)]);
+    const auto middle = levels.begin() + static_cast<std::ptrdiff_t>(levels.size() / 2);
+    std::nth_element(levels.begin(), middle, levels.end());
+    if (!(static_cast<double>(*middle) >= options.min_open_level))
+      fail(
+          "{}: the scatter's halo needs open beam around the part, and the radiograph outside "
+          "the part's shadow {} is not open (its median {:.3f}, below {}): the part seems to "
+          "fill the radiograph; give the job's \"scatter\"",
+          name, toString(out.shadow), static_cast<double>(*middle), options.min_open_level);
+  }
 
   // The width: a logarithmic grid, then golden sections around its best point.
   const std::vector<double> attenuation = columnAttenuation(n);
@@ -192,6 +206,20 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
                        [](const WidthFit& p, const WidthFit& q) { return p.rms < q.rms; }) -
       grid.begin());
   WidthFit best = grid[static_cast<size_t>(best_at)];
+  // What no detector does: the fit has explained something else.
+  auto checkPlausible = [&](const WidthFit& fit) {
+    const double darkening = -fit.k.c / (fit.k.a + fit.k.b);
+    if (!std::isfinite(fit.rms) || !(weightOf(fit.k) <= options.max_weight) ||
+        !(std::abs(darkening) <= options.max_column_darkening))
+      fail(
+          "{}: the scatter's halo does not fit the open beam around the part as a scatter: "
+          "weight {:.3f} (at most {}), column darkening {:.3f} (at most {}), sigma {:.3g} mm: "
+          "what lies outside the part's shadow {} is probably not open beam; give the job's "
+          "\"scatter\"",
+          name, weightOf(fit.k), options.max_weight, darkening, options.max_column_darkening,
+          fit.sigma_px * binned_pitch, toString(out.shadow));
+  };
+  checkPlausible(best);
   auto weightUncertainty = [](const WidthFit& fit) {
     const double s = fit.k.a + fit.k.b;
     const Eigen::Vector2d gradient(-fit.k.b / (s * s), fit.k.a / (s * s));
@@ -234,6 +262,7 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
       lo = t1, t1 = t2, f1 = f2, t2 = lo + ratio * (hi - lo), f2 = at(t2);
   }
   if (f1.rms < best.rms || f2.rms < best.rms) best = f1.rms < f2.rms ? f1 : f2;
+  checkPlausible(best);
 
   // Uncertainties: the width's from the curvature of the residual sum of
   // squares S(ln sigma) (a change of S by 2 rms^2 is one standard deviation),

@@ -104,8 +104,10 @@ nlohmann::json wedgePictures(const WedgeCalibrationJob& job, const WedgeCalibrat
                                    {"marks", marks}}})}};
 }
 
-// The scatter taken out: the job's, or the halo's fit with its search.
-nlohmann::json wedgeScatterJson(const WedgeCalibration& result) {
+// The scatter taken out: the job's, or the halo's fit with its search; null
+// when the halo's fit failed.
+nlohmann::json wedgeScatterJson(const WedgeCalibrationJob& job, const WedgeCalibration& result) {
+  if (job.estimate_scatter && !result.halo) return nullptr;
   nlohmann::json out = result.scatter.toJson();
   out["estimated"] = result.halo.has_value();
   if (const auto& halo = result.halo) {
@@ -184,7 +186,7 @@ void writeFailedWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCali
                 {"job", job.file.string()},
                 {"radiograph", job.radiograph.image.string()},
                 {"ramp", rampJson(partial)},
-                {"scatter", wedgeScatterJson(partial)},
+                {"scatter", wedgeScatterJson(job, partial)},
                 {"table",
                  {{"row", partial.rows},
                   {"path_mm", partial.path_mm},
@@ -251,7 +253,7 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
                               {"ramp_length_mm", job.ramp_length_mm}}},
                             {"fit", toJson(result.fit)},
                             {"eq_3_7", {{"x0_mm", result.x0_mm}, {"x_max_mm", result.x_max_mm}}},
-                            {"scatter", wedgeScatterJson(result)},
+                            {"scatter", wedgeScatterJson(job, result)},
                             {"uncertainty", wedgeUncertaintyJson(job, result)},
                             {"material", result.material.toJson()},
                             {"table",

@@ -39,6 +39,11 @@ struct HaloOptions {
   double min_sigma_mm = 2.0;
   double max_sigma_fraction = 1.5;  // ... up to this fraction of the longer side
   double min_open_fraction = 0.05;  // of the image outside the shadow's box
+  double min_open_level = 0.9;      // median of the normalized image there
+  // What a scintillator and a panel can do; a fit beyond either explains
+  // something else (a part that fills the image) and is refused.
+  double max_weight = 0.5;
+  double max_column_darkening = 0.1;
 };
 
 struct HaloFit {
@@ -62,8 +67,10 @@ struct HaloFit {
 // Fits the halo of `normalized` (a radiograph divided by its flat field, its
 // open beam near 1), pixels of `pitch_mm`. `name` is
 // the file the messages name. Throws Error, naming the file and the figures,
-// when there is too little open beam, the part has no sharp outline, or the
-// halo does not decide the width (optimum at the end of the search range, or
+// when there is too little open beam (or what lies outside the part's shadow
+// is not open), the part has no sharp outline, the fit is not a scatter a
+// detector has (weight above max_weight, darkening above
+// max_column_darkening), or the halo does not decide the width (optimum at the end of the search range, or
 // a width or weight uncertain by more than half its value): the job must then
 // give its "scatter".
 HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::string& name,

@@ -207,9 +207,11 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
       grid.begin());
   WidthFit best = grid[static_cast<size_t>(best_at)];
   // What no detector does: the fit has explained something else.
-  auto checkPlausible = [&](const WidthFit& fit) {
+  // At the narrowest width the blur is about 1 all over the open beam, which
+  // leaves the split between a and b (the weight) undecided.
+  auto checkPlausible = [&](const WidthFit& fit, bool weight_decided) {
     const double darkening = -fit.k.c / (fit.k.a + fit.k.b);
-    if (!std::isfinite(fit.rms) || !(weightOf(fit.k) <= options.max_weight) ||
+    if (!std::isfinite(fit.rms) || (weight_decided && !(weightOf(fit.k) <= options.max_weight)) ||
         !(std::abs(darkening) <= options.max_column_darkening))
       fail(
           "{}: the scatter's halo does not fit the open beam around the part as a scatter: "
@@ -219,7 +221,7 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
           name, weightOf(fit.k), options.max_weight, darkening, options.max_column_darkening,
           fit.sigma_px * binned_pitch, toString(out.shadow));
   };
-  checkPlausible(best);
+  checkPlausible(best, best_at != 0);
   auto weightUncertainty = [](const WidthFit& fit) {
     const double s = fit.k.a + fit.k.b;
     const Eigen::Vector2d gradient(-fit.k.b / (s * s), fit.k.a / (s * s));
@@ -262,7 +264,7 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
       lo = t1, t1 = t2, f1 = f2, t2 = lo + ratio * (hi - lo), f2 = at(t2);
   }
   if (f1.rms < best.rms || f2.rms < best.rms) best = f1.rms < f2.rms ? f1 : f2;
-  checkPlausible(best);
+  checkPlausible(best, true);
 
   // Uncertainties: the width's from the curvature of the residual sum of
   // squares S(ln sigma) (a change of S by 2 rms^2 is one standard deviation),

@@ -230,7 +230,11 @@ StudyInputs prepareStudyInputs(const DatasetTruth& truth, const nlohmann::json& 
         fmt::format("3 exponentials fitted to {} (max residual {:.2e})",
                     (truth.folder / "truth.json").string(), report.max_abs_residual));
   } else {
-    inputs.material = ExponentialSum::load(settings_file.parent_path() / material);
+    const ConfigNode node = ConfigNode::loadFile(settings_file.parent_path() / material);
+    inputs.material = ExponentialSum::fromConfig(node);
+    if (auto scatter = node.find("scatter"))
+      inputs.material_scatter = ScatterModel::fromConfig(*scatter);
+    node.finish();
   }
   return inputs;
 }
@@ -302,18 +306,28 @@ std::string StudySummary::table() const {
 StudySummary runStudy(const StudyOptions& options) {
   const DatasetTruth truth = DatasetTruth::load(options.dataset / "truth.json");
   const ConfigNode settings_node = ConfigNode::loadFile(options.settings);
-  const nlohmann::json& settings = settings_node.json();
+  nlohmann::json settings = settings_node.json();
   createOutputFolder(options.output / "runs");
 
   // The part and the machine from the dataset, the material from the
   // settings or fitted, each radiograph prepared once for every run.
   const StudyInputs inputs = prepareStudyInputs(truth, settings, options.settings);
+  // Without a scatter of their own, the runs take the one the material's
+  // calibration found, as a measurement job does (measure/inputs.cpp).
+  if (!settings.contains("scatter") && inputs.material_scatter) {
+    settings["scatter"] = inputs.material_scatter->toJson();
+    spdlog::info("{}: the scatter its material's calibration found: weight {:.4f}, sigma {:.1f} mm",
+                 options.settings.string(), inputs.material_scatter->weight,
+                 inputs.material_scatter->sigma_mm);
+  }
   PreparedShots shots(inputs.machine);
   // Records, so that every run's job.json can be measured again by hand.
   const fs::path machine_file = options.output / "machine.json";
   const fs::path material_file = options.output / "material.json";
   writeFileAtomically(machine_file, truth.machine.dump(2) + "\n");
-  writeFileAtomically(material_file, inputs.material.toJson().dump(2) + "\n");
+  nlohmann::json material_record = inputs.material.toJson();
+  if (inputs.material_scatter) material_record["scatter"] = inputs.material_scatter->toJson();
+  writeFileAtomically(material_file, material_record.dump(2) + "\n");
 
   std::vector<Combination> runs = combinations(truth, options.combinations);
   if (options.limit > 0 && static_cast<size_t>(options.limit) < runs.size())

@@ -84,6 +84,9 @@ struct StudyInputs {
   std::shared_ptr<const PartModel> part;
   Machine machine;
   ExponentialSum material{{{1.0, 0.0}}, ""};
+  // The detector's scatter the material file carries (a wedge calibration's),
+  // for settings without a "scatter" of their own.
+  std::optional<ScatterModel> material_scatter;
 };
 StudyInputs prepareStudyInputs(const DatasetTruth& truth, const nlohmann::json& settings,
                                const std::filesystem::path& settings_file);

@@ -215,6 +215,22 @@ TEST_F(Hostile, PoseBoundsBehindTheSourceAreNamedAndLeaveNoFolder) {
                 {"/pose_bounds/centre_mm: no centre within these bounds puts the part in view"});
 }
 
+// A material.json from a wedge calibration carries the detector's scatter;
+// a study whose settings give none measures every run with it and records it.
+TEST_F(Hostile, StudyRunsTakeTheScatterTheirMaterialCarries) {
+  simulateTinyLab();
+  write("material.json", R"({"model": "exponential_sum", "terms": [{"weight": 1, "mu_per_mm": 0.05}],
+    "scatter": {"weight": 0.07, "sigma_mm": 12.5}})");
+  std::string settings = tinySettings();
+  settings.replace(settings.find(R"("fit")"), 5, R"("material.json")");
+  const CommandResult r = run("study " + out("ds") + " -o " + out("study") + " -q --limit 1 -s " +
+                              write("settings.json", settings));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const std::string job = readText(out("study/runs/t00-t01/job.json"));
+  EXPECT_NE(job.find("\"sigma_mm\": 12.5"), std::string::npos) << job;
+  EXPECT_NE(readText(out("study/material.json")).find("\"weight\": 0.07"), std::string::npos);
+}
+
 // Item 5: a study run again with other settings used to return the old
 // numbers; a damaged run file stopped a resume with the library's message.
 TEST_F(Hostile, StudyNeverReusesResultsOfOtherSettings) {

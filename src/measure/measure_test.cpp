@@ -38,6 +38,16 @@ class Measure : public ::testing::Test {
   void TearDown() override {
     if (!HasFailure()) fs::remove_all(dir_);
   }
+  // machine.json, a 64 x 64 detector of 0.5 mm pixels, and a.tif, an open
+  // beam on it: what a job needs to load without measuring.
+  void writeOpenBeamShot() const {
+    Machine machine;
+    machine.columns = machine.rows = 64;
+    machine.pitch_u_mm = machine.pitch_v_mm = 0.5;
+    machine.cx_px = machine.cy_px = 32.0;
+    std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+    writeTiff(dir_ / "a.tif", Image(64, 64, 1.0f), TiffFormat::kFloat32);
+  }
   fs::path dir_;
 };
 
@@ -227,18 +237,14 @@ TEST_F(Measure, TheGaussNewtonScheduleRecoversANoiseFreePrismJaw) {
 // A material.json from a wedge calibration carries the detector's scatter;
 // a job without a "scatter" of its own uses it, a job with one keeps its own.
 TEST_F(Measure, AJobWithoutScatterUsesTheOneItsMaterialCarries) {
-  Machine machine;
-  machine.columns = machine.rows = 64;
-  machine.pitch_u_mm = machine.pitch_v_mm = 0.5;
-  machine.cx_px = machine.cy_px = 32.0;
-  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
-  writeTiff(dir_ / "a.tif", Image(64, 64, 1.0f), TiffFormat::kFloat32);
+  writeOpenBeamShot();
   std::ofstream(dir_ / "material.json") << R"({"model": "exponential_sum",
     "terms": [{"weight": 1, "mu_per_mm": 0.05}],
     "scatter": {"weight": 0.12, "sigma_mm": 40, "weight_uncertainty": 0.01, "sigma_uncertainty_mm": 5}})";
   auto load = [&](const std::string& scatter) {
     std::ofstream(dir_ / "job.json") << R"({"part": ")" + kRoot + R"(/parts/cuboid.json",
-      "machine": "machine.json", "material": "material.json", )" + scatter + R"(
+      "machine": "machine.json", "material": "material.json", )" +
+                                            scatter + R"(
       "radiographs": [{"name": "a", "image": "a.tif", "white_region": [0, 0, 8, 8], "roi": [8, 8, 40, 40]}],
       "pose_bounds": {"rotation_deg": [[-5, 5], [-5, 5], [-5, 5]], "centre_mm": [[-9, 9], [-9, 9], [390, 410]]}})";
     const ConfigNode root = ConfigNode::loadFile(dir_ / "job.json");
@@ -258,12 +264,7 @@ TEST_F(Measure, AJobWithoutScatterUsesTheOneItsMaterialCarries) {
 }
 
 TEST_F(Measure, FreeMaterialParametersStandForTheMaterial) {
-  Machine machine;
-  machine.columns = machine.rows = 64;
-  machine.pitch_u_mm = machine.pitch_v_mm = 0.5;
-  machine.cx_px = machine.cy_px = 32.0;
-  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
-  writeTiff(dir_ / "a.tif", Image(64, 64, 1.0f), TiffFormat::kFloat32);
+  writeOpenBeamShot();
   std::ofstream(dir_ / "job.json") << R"({"part": ")" + kRoot + R"(/parts/cuboid.json",
     "machine": "machine.json",
     "radiographs": [{"name": "a", "image": "a.tif", "white_region": [0, 0, 8, 8], "roi": [8, 8, 40, 40]}],

@@ -13,9 +13,9 @@
 namespace xgauge {
 
 void writeCalibrationOutputs(const std::filesystem::path& folder, const ExponentialSum& material,
-                             const ScatterModel* scatter, nlohmann::json figures, const CalibrationData& data,
-                             const TrueCurve& true_curve, const nlohmann::json& pictures,
-                             bool html_report) {
+                             const ScatterModel* scatter, nlohmann::json figures,
+                             const CalibrationData& data, const TrueCurve& true_curve,
+                             const nlohmann::json& pictures, bool html_report) {
   createOutputFolder(folder);
   auto fitted = [&](double x) { return material.transmission(x); };
 

@@ -296,6 +296,32 @@ TEST_F(Calibrate, WedgeGivesBackTheMaterialItWasRenderedWith) {
   expectErrorMentioning([&] { calibrateFromWedge(job); }, "no ramp found");
 }
 
+// A wedge turned by 90 degrees: its ramp runs along the rows, and the
+// calibration reads it from the transposed radiograph.
+TEST_F(Calibrate, ATurnedWedgeIsReadAlongItsRows) {
+  const Machine machine = wedgeMachine();
+  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+  Pose pose = Pose::fromEulerDeg(Vec3(0, 0, 90), Vec3(0.0, 0.0, 740.0));
+  pose.translation_mm += pose.rotation * Vec3(0.0, -45.0, 0.0);
+  writeTiff(dir_ / "wedge.tif", renderWedgeBlock(machine, pose, 3), TiffFormat::kFloat32);
+  std::ofstream(dir_ / "job.json") << R"({
+    "machine": "machine.json",
+    "radiograph": {"image": "wedge.tif", "white_region": [8, 8, 40, 40]},
+    "wedge": {"max_thickness_mm": 20.0, "ramp_length_mm": 90.0},
+    "scatter": {"weight": 0, "sigma_mm": 1}})";
+  const WedgeCalibrationJob job = WedgeCalibrationJob::load(dir_ / "job.json");
+  const WedgeCalibration result = calibrateFromWedge(job);
+  EXPECT_TRUE(result.turned);
+  // The thin end (part y = 90) and the thick end (y = 0), as columns of the
+  // radiograph: rows of the transposed one.
+  EXPECT_NEAR(result.ramp.thin_row, machine.project(pose.apply(Vec3(0, 90, 0))).x(), 2.0);
+  EXPECT_NEAR(result.ramp.thick_row, machine.project(pose.apply(Vec3(0, 0, 0))).x(), 2.0);
+  const CurveDeviation dev =
+      curveDeviation([&](double x) { return result.material.transmission(x); },
+                     [&](double x) { return kWedgeCurve.transmission(x); }, 20.0);
+  EXPECT_LT(dev.max_abs, 2e-3) << "at " << dev.at_mm << " mm";
+}
+
 TEST_F(Calibrate, KnownCuboidGivesBackTheMaterialItWasRenderedWith) {
   Machine machine;
   machine.source_detector_distance_mm = 1000.0;

@@ -20,9 +20,9 @@ namespace {
 // the geometry, the table and the curve, for the wedge's `thickness_mm` and
 // `ramp_length_mm` (the job's, or shifted by their uncertainties to
 // propagate them). Fills `out` as far as it gets.
-void curveFromRamp(const WedgeCalibrationJob& job, const Image& image, const RampDetection& ramp,
-                   double thickness_mm, double ramp_length_mm, WedgeCalibration& out) {
-  const Machine& machine = job.machine;
+void curveFromRamp(const WedgeCalibrationJob& job, const Machine& machine, const Image& image,
+                   const RampDetection& ramp, double thickness_mm, double ramp_length_mm,
+                   WedgeCalibration& out) {
   const std::string name = job.radiograph.image.string();
   out.rows.clear(), out.path_mm.clear(), out.transmission.clear();
   // 3. Geometry: both ends on the back face.
@@ -100,6 +100,24 @@ void curveFromRamp(const WedgeCalibrationJob& job, const Image& image, const Ram
           "by thesis eq. 3.7 (x0 = {:.4f} mm, x_max = {:.4f} mm)",
           job.radiograph.image.filename().string(), out.fit.best().report.terms_used,
           out.rows.size(), out.x0_mm, out.x_max_mm));
+}
+
+// A wedge turned by 90 or 270 degrees has its ramp along the rows; the ramp
+// finder and the geometry above read it along the columns of the transposed
+// image, seen by the transposed machine (columns and rows, pitches and the
+// principal point swapped: a mirror image of the set-up, whose paths are the
+// same). Written here because no image library the project uses has it.
+Image transposed(const Image& image) {
+  Image out(image.height(), image.width());
+  for (int y = 0; y < image.height(); ++y)
+    for (int x = 0; x < image.width(); ++x) out(y, x) = image(x, y);
+  return out;
+}
+Machine transposed(Machine machine) {
+  std::swap(machine.columns, machine.rows);
+  std::swap(machine.pitch_u_mm, machine.pitch_v_mm);
+  std::swap(machine.cx_px, machine.cy_px);
+  return machine;
 }
 
 }  // namespace
@@ -214,14 +232,32 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
 
   // 2. The ramp.
   out.step = "find the ramp";
-  out.ramp = detectRamp(image, job.ramp, name);
+  Machine geometry = machine;
+  try {
+    out.ramp = detectRamp(image, job.ramp, name);
+  } catch (const Error& along_columns) {
+    if (job.ramp.columns || job.ramp.rows) throw;  // given along the columns
+    try {
+      out.ramp = detectRamp(transposed(image), job.ramp, name + " (transposed)");
+    } catch (const Error&) {
+      throw along_columns;
+    }
+    out.turned = true;
+    image = transposed(image);
+    geometry = transposed(machine);
+    out.normalized = image;
+    spdlog::info(
+        "{}: the ramp runs along the rows (the wedge is turned by 90 degrees): read from the "
+        "transposed radiograph",
+        name);
+  }
   out.ramp_found = true;
   const RampDetection& ramp = out.ramp;
   spdlog::debug("{}: ramp in columns {}..{}, thin end at row {:.2f}, thick end at row {:.2f}{}",
                 name, ramp.column_begin, ramp.column_end - 1, ramp.thin_row, ramp.thick_row,
                 ramp.automatic_rows ? " (found)" : " (given)");
 
-  curveFromRamp(job, image, ramp, job.max_thickness_mm, job.ramp_length_mm, out);
+  curveFromRamp(job, geometry, image, ramp, job.max_thickness_mm, job.ramp_length_mm, out);
   out.table_uncertainty = out.fit.tableUncertainty();
 
   // 7. What the table cannot show: the curve's change when the scatter's
@@ -236,7 +272,7 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
     if (!(u > 0.0)) return;
     WedgeCalibration moved;
     try {
-      curveFromRamp(job, shifted_image, ramp, thickness, length, moved);
+      curveFromRamp(job, geometry, shifted_image, ramp, thickness, length, moved);
     } catch (const Error& e) {
       fail("the calibration does not survive its {} moved by its standard uncertainty ({}): {}",
            influence, u, e.message());
@@ -249,10 +285,15 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
     // The radiograph without a scatter of another weight or width: the
     // halo's removal (with its darkening) or the job's.
     auto without = [&](double weight, double sigma_mm) {
-      if (out.halo) return out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
-      ScatterModel moved = scatter;
-      moved.weight = weight, moved.sigma_mm = sigma_mm;
-      return moved.remove(normalized, machine.pitch_u_mm, spec.white_region);
+      Image removed;
+      if (out.halo) {
+        removed = out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
+      } else {
+        ScatterModel moved = scatter;
+        moved.weight = weight, moved.sigma_mm = sigma_mm;
+        removed = moved.remove(normalized, machine.pitch_u_mm, spec.white_region);
+      }
+      return out.turned ? transposed(removed) : removed;
     };
     propagate("scatter weight", scatter.weight, scatter.weight_uncertainty,
               without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),

@@ -88,14 +88,16 @@ nlohmann::json wedgePictures(const WedgeCalibrationJob& job, const WedgeCalibrat
         {{"label", result.rows.empty() ? "ramp found" : "ramp rows used"},
          {"box", {ramp.column_begin, lo, ramp.column_end - ramp.column_begin, hi - lo}}});
   }
-  if (result.halo) {
-    const PixelRect& box = result.halo->shadow;
+  // Boxes of the radiograph, on the picture (transposed when the ramp runs
+  // along the rows).
+  auto box = [&](const PixelRect& r) {
+    return result.turned ? nlohmann::json{r.y, r.x, r.height, r.width}
+                         : nlohmann::json{r.x, r.y, r.width, r.height};
+  };
+  if (result.halo)
     marks.push_back({{"label", "the wedge's shadow (outside: the halo fitted)"},
-                     {"box", {box.x, box.y, box.width, box.height}}});
-  }
-  const PixelRect& white = job.radiograph.white_region;
-  marks.push_back(
-      {{"label", "white region"}, {"box", {white.x, white.y, white.width, white.height}}});
+                     {"box", box(result.halo->shadow)}});
+  marks.push_back({{"label", "white region"}, {"box", box(job.radiograph.white_region)}});
   return {{"kind", "wedge"},
           {"scatter_removed", result.scatter.enabled()},
           {"radiographs",
@@ -130,7 +132,8 @@ nlohmann::json rampJson(const WedgeCalibration& result) {
                         {"thin_end_row", ramp.thin_row},
                         {"thick_end_row", ramp.thick_row},
                         {"automatic_rows", ramp.automatic_rows},
-                        {"row_noise", ramp.row_noise}};
+                        {"row_noise", ramp.row_noise},
+                        {"along_rows", result.turned}};
   if (!result.rows.empty()) out["rows_used"] = {result.rows.front(), result.rows.back()};
   return out;
 }

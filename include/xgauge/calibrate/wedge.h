@@ -6,7 +6,10 @@
 //      the job's "scatter" or, when it has none, the scatter and the panel's
 //      column darkening fitted to the halo around the wedge (halo.h), which
 //      material.json then carries for the measurements that use it;
-//   2. find the ramp's columns and its thin and thick end rows (ramp.h);
+//   2. find the ramp's columns and its thin and thick end rows (ramp.h); when
+//      there is none along the columns and the job gives no ramp, along the
+//      rows (the wedge turned by 90 or 270 degrees), by finding it in the
+//      transposed radiograph seen by the transposed machine;
 //   3. map every pixel of the band to its path length through the wedge by
 //      the machine geometry, not by a straight line in rows. Both ends of the
 //      ramp lie on the wedge's back face (the face towards the detector), so
@@ -120,6 +123,9 @@ struct WedgeCalibration {
   // The step under way or, after a success, "done": what a failure names.
   std::string step;
   bool ramp_found = false;  // `ramp` holds a detection
+  // The ramp runs along the rows (the wedge turned by 90 or 270 degrees):
+  // `ramp`, `rows` and `normalized` are those of the transposed radiograph.
+  bool turned = false;
 };
 
 WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job);

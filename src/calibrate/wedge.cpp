@@ -16,6 +16,10 @@ namespace xgauge {
 
 namespace {
 
+// Five times the default uncertainty of a material's transmission: a curve
+// this uncertain moves a 12 mm thickness by about 0.2 mm.
+constexpr double kLargeCurveUncertainty = 0.005;
+
 // Steps 3 to 6 on an image with the scatter taken out and its ramp found:
 // the geometry, the table and the curve, for the wedge's `thickness_mm` and
 // `ramp_length_mm` (the job's, or shifted by their uncertainties to
@@ -230,34 +234,42 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   }
   out.normalized = image;
 
-  // 2. The ramp.
-  out.step = "find the ramp";
+  // 2-6. The ramp and the curve along the columns or, when that fails and
+  // the job gives no ramp, along the rows (the wedge turned by 90 degrees).
   Machine geometry = machine;
+  auto readRamp = [&](const Image& oriented, const Machine& seen, const std::string& label) {
+    out.step = "find the ramp";
+    out.ramp_found = false;
+    out.ramp = detectRamp(oriented, job.ramp, label);
+    out.ramp_found = true;
+    spdlog::debug("{}: ramp in columns {}..{}, thin end at row {:.2f}, thick end at row {:.2f}{}",
+                  label, out.ramp.column_begin, out.ramp.column_end - 1, out.ramp.thin_row,
+                  out.ramp.thick_row, out.ramp.automatic_rows ? " (found)" : " (given)");
+    curveFromRamp(job, seen, oriented, out.ramp, job.max_thickness_mm, job.ramp_length_mm, out);
+  };
   try {
-    out.ramp = detectRamp(image, job.ramp, name);
+    readRamp(image, machine, name);
   } catch (const Error& along_columns) {
     if (job.ramp.columns || job.ramp.rows) throw;  // given along the columns
+    const std::string step = out.step;
+    WedgeCalibration along_columns_found = out;
     try {
-      out.ramp = detectRamp(transposed(image), job.ramp, name + " (transposed)");
+      out.turned = true;
+      readRamp(transposed(image), transposed(machine), name + " (transposed)");
     } catch (const Error&) {
+      out = std::move(along_columns_found);  // the diagnostic of the first reading
+      out.step = step;
       throw along_columns;
     }
-    out.turned = true;
     image = transposed(image);
     geometry = transposed(machine);
     out.normalized = image;
     spdlog::info(
         "{}: the ramp runs along the rows (the wedge is turned by 90 degrees): read from the "
-        "transposed radiograph",
-        name);
+        "transposed radiograph ({})",
+        name, along_columns.message());
   }
-  out.ramp_found = true;
   const RampDetection& ramp = out.ramp;
-  spdlog::debug("{}: ramp in columns {}..{}, thin end at row {:.2f}, thick end at row {:.2f}{}",
-                name, ramp.column_begin, ramp.column_end - 1, ramp.thin_row, ramp.thick_row,
-                ramp.automatic_rows ? " (found)" : " (given)");
-
-  curveFromRamp(job, geometry, image, ramp, job.max_thickness_mm, job.ramp_length_mm, out);
   out.table_uncertainty = out.fit.tableUncertainty();
 
   // 7. What the table cannot show: the curve's change when the scatter's
@@ -310,6 +322,17 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   for (const CurveInfluence& influence : out.influences)
     variance += influence.change * influence.change;
   out.material.setTransmissionUncertainty(std::sqrt(variance));
+  if (std::sqrt(variance) > kLargeCurveUncertainty) {
+    std::string largest = "table";
+    double change = out.table_uncertainty;
+    for (const CurveInfluence& influence : out.influences)
+      if (influence.change > change) largest = influence.name, change = influence.change;
+    spdlog::warn(
+        "{}: the curve's standard uncertainty, {:.4f}, is large (mostly from the {}, {:.4f}): "
+        "every dimension measured along the beam with it carries it; check the shot and the "
+        "wedge's dimensions",
+        name, std::sqrt(variance), largest, change);
+  }
   // The table's first row, on the curve's path axis after eq. 3.7.
   const double first =
       (out.path_mm.front() - out.x0_mm) * out.x_max_mm / (out.x_max_mm - out.x0_mm);

@@ -7,9 +7,10 @@
 //      column darkening fitted to the halo around the wedge (halo.h), which
 //      material.json then carries for the measurements that use it;
 //   2. find the ramp's columns and its thin and thick end rows (ramp.h); when
-//      there is none along the columns and the job gives no ramp, along the
-//      rows (the wedge turned by 90 or 270 degrees), by finding it in the
-//      transposed radiograph seen by the transposed machine;
+//      that or the steps below fail along the columns (no ramp, or a band no
+//      curve fits) and the job gives no ramp, all of it again along the rows
+//      (the wedge turned by 90 or 270 degrees): the transposed radiograph
+//      seen by the transposed machine; when both fail, the first failure;
 //   3. map every pixel of the band to its path length through the wedge by
 //      the machine geometry, not by a straight line in rows. Both ends of the
 //      ramp lie on the wedge's back face (the face towards the detector), so

@@ -65,14 +65,14 @@ struct HaloFit {
 };
 
 // Fits the halo of `normalized` (a radiograph divided by its flat field, its
-// open beam near 1), pixels of `pitch_mm`. `name` is
-// the file the messages name. Throws Error, naming the file and the figures,
-// when there is too little open beam (or what lies outside the part's shadow
-// is not open), the part has no sharp outline, the fit is not a scatter a
-// detector has (weight above max_weight, darkening above
-// max_column_darkening), or the halo does not decide the width (optimum at the end of the search range, or
-// a width or weight uncertain by more than half its value): the job must then
-// give its "scatter".
+// open beam near 1), pixels of `pitch_mm`; `name` is the file the messages
+// name. Throws Error, naming the file and the figures, when there is too
+// little open beam (or what lies outside the part's shadow is not open), the
+// part has no sharp outline, the fit is not a scatter a detector has (weight
+// above max_weight, darkening above max_column_darkening), or the halo does
+// not decide the width (optimum at the widest width searched, or a width or
+// weight uncertain by more than half its value): the job must then give its
+// "scatter".
 HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::string& name,
                        const HaloOptions& options = {});
 

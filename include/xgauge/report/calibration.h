@@ -31,9 +31,9 @@ struct CalibrationData {
 // file. With `scatter` (enabled), material.json carries it under "scatter"
 // for the measurements that use the material without a scatter of their own.
 void writeCalibrationOutputs(const std::filesystem::path& folder, const ExponentialSum& material,
-                             const ScatterModel* scatter, nlohmann::json figures, const CalibrationData& data,
-                             const TrueCurve& true_curve, const nlohmann::json& pictures,
-                             bool html_report);
+                             const ScatterModel* scatter, nlohmann::json figures,
+                             const CalibrationData& data, const TrueCurve& true_curve,
+                             const nlohmann::json& pictures, bool html_report);
 
 // material.json, calibration.json (every figure and the table) and
 // report.html (with the normalized radiograph and the ramp found in it)

@@ -10,15 +10,18 @@ nominal, and the detector's scatter, heel effect, cos^3 fall-off and
 signal-dependent column darkening. The virtual lab (`xgauge simulate`)
 takes one calibration shot of it with its noise, gain, dead pixels and
 ghost; `xgauge calibrate wedge` then calibrates from it with nothing given
-by hand but the machine file, the wedge's caliper dimensions and the
-material's composition with the tube voltage (its rate floor). The table
+by hand but the machine file, the wedge's model with its caliper dimensions
+(or, with --ramp, its thickness and ramp length) and the material's
+composition with the tube voltage (its rate floor). The table
 compares the calibrated curve with the lab's true curve over 5 % to 95 % of
 the wedge's thickness, checks every rate against the floor and compares the
 scatter the calibration found in the halo around the wedge with the lab's.
 
 Usage: scripts/calibration_grid.py [--xgauge build/apps/xgauge/xgauge]
        [--out out/calibration_grid] [--setups 24] [--quick] [--seed 1]
---quick runs the first two set-ups only (what ctest runs). Exit status 0
+       [--ramp] [--only NAME ...]
+--quick runs the first two set-ups only, --only s03 s07 those named; --ramp
+uses the ramp method instead of the wedge's model. Exit status 0
 when every set-up calibrates within the acceptance (largest deviation at
 most 0.003, no rate below the floor, the scatter's weight within 15 % and
 its width within 25 %), 1 otherwise, 2 on a usage error.
@@ -109,18 +112,29 @@ def prepare(setup, folder):
                      "principal_point_px": setup["principal_point_px"]}})
     # The wedge's middle on the beam through the detector's centre, at the
     # height that gives the magnification; turned about the beam, tilted.
+    # Where the wedge cannot fit the detector, the view is partial: the
+    # corner of its left wall at the thin end a quarter of the detector's
+    # width up and left (in the wedge's own frame) of its centre, so that the
+    # thin end, a wall and open beam beside them are in view. (A view of
+    # neither end of the ramp cannot tell the wedge's position along it from
+    # the curve.)
     dims = setup["dimensions"]
-    centre_part = [0.0, RAMP_LENGTH_MM / 2, dims["thickness"] / 2]
     r = rotation(setup["tilt_deg"][0], setup["tilt_deg"][1], setup["turn_deg"])
     height = distance * (1.0 - 1.0 / setup["magnification"])
     cx, cy = setup["principal_point_px"]
+    m = setup["magnification"]
     # The detector's centre in world x, y (the principal point is the origin).
-    # A partial view leaves the detector's left side open (the lab and the
-    # calibration normalize by an open-beam region).
-    shift = 0.3 * size if setup["partial"] else 0.0
-    target = [(size / 2 + shift - cx) * pitch / setup["magnification"],
-              (cy - size / 2) * pitch / setup["magnification"], height]
-    rc = [sum(r[i][j] * centre_part[j] for j in range(3)) for i in range(3)]
+    target = [(size / 2 - cx) * pitch / m, (cy - size / 2) * pitch / m, height]
+    if setup["partial"]:
+        anchor = [-(dims["pocket_left_top"] + dims["wall_left_top"]), RAMP_LENGTH_MM,
+                  dims["thickness"] / 2]
+        quarter = 0.25 * size * pitch / m
+        turn = math.radians(setup["turn_deg"])
+        target[0] += math.cos(turn) * -quarter - math.sin(turn) * quarter
+        target[1] += math.sin(turn) * -quarter + math.cos(turn) * quarter
+    else:
+        anchor = [0.0, RAMP_LENGTH_MM / 2, dims["thickness"] / 2]
+    rc = [sum(r[i][j] * anchor[j] for j in range(3)) for i in range(3)]
     translation = [target[i] - rc[i] for i in range(3)]
     write_json(folder / "recipe.json", {
         "description": f"grid set-up {setup['name']}: the wedge block's calibration shot",
@@ -153,15 +167,19 @@ def prepare(setup, folder):
                                       "translation_mm": translation}}]}})
 
 
-def calibration_job(folder, truth):
-    """The job: the machine, the shot, the caliper values; nothing else by hand."""
+def calibration_job(folder, truth, ramp):
+    """The job: the machine, the shot, the caliper values; nothing else by hand.
+    The wedge's model fitted as a known part or, with `ramp`, the ramp method
+    (its thickness and ramp length)."""
+    dims = truth["part"]["dimensions"]
     write_json(folder / "job.json", {
         "description": "grid set-up: the wedge block's calibration shot",
         "machine": "machine.json",
         "radiograph": {"image": "data/calibration.tif", "dark": "data/dark.tif",
                        "flat": "data/flat.tif", "white_region": truth["white_region"]},
-        "wedge": {"max_thickness_mm": truth["part"]["dimensions"]["thickness"],
-                  "ramp_length_mm": RAMP_LENGTH_MM},
+        "wedge": ({"max_thickness_mm": dims["thickness"], "ramp_length_mm": RAMP_LENGTH_MM}
+                  if ramp else
+                  {"model": str(ROOT / "parts" / "wedge_block.json"), "dimensions": dims}),
         "rate_floor": {"compound": "Al", "density_g_cm3": 2.699,
                        "tube_kv": truth["beam"]["tube_kv"]}})
 
@@ -196,10 +214,15 @@ def main():
     parser.add_argument("--setups", type=int, default=24)
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--ramp", action="store_true",
+                        help="the ramp method (rows and a straight ramp) instead of the model")
+    parser.add_argument("--only", nargs="*", default=None, help="these set-ups only (s00 ...)")
     args = parser.parse_args()
     grid = setups(args.setups, args.seed)
     if args.quick:
         grid = grid[:2]
+    if args.only:
+        grid = [setup for setup in grid if setup["name"] in args.only]
     out = Path(args.out)
     rows, passed = [], 0
     for setup in grid:
@@ -213,7 +236,7 @@ def main():
                 status = "simulation failed: " + last_error(folder / "simulate.log")
         if not status:
             truth = json.loads((folder / "data" / "truth.json").read_text())
-            calibration_job(folder, truth)
+            calibration_job(folder, truth, args.ramp)
             result = folder / "calibration"
             if run([args.xgauge, "--quiet", "calibrate", "wedge", str(folder / "job.json"), "-o",
                     str(result), "--no-report"], folder / "calibrate.log"):

@@ -90,15 +90,26 @@ void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
       outputs.commit();
       throw failedAt(result.step, e, wedge);
     }
-    std::printf("ramp: columns %d..%d, thin end at row %.2f, thick end at row %.2f (%s)\n",
-                result.ramp.column_begin, result.ramp.column_end - 1, result.ramp.thin_row,
-                result.ramp.thick_row, result.ramp.automatic_rows ? "found" : "given");
+    if (result.part) {
+      const Pose& pose = result.part->measurement.radiographs.front().pose;
+      const Vec3 angles = pose.eulerDeg();
+      std::printf(
+          "wedge fitted as a known part: rotation (%.3f, %.3f, %.3f) deg, part origin at (%.3f, "
+          "%.3f, %.3f) mm, magnification %.4f (its centre), %zu rounds\n",
+          angles.x(), angles.y(), angles.z(), pose.translation_mm.x(), pose.translation_mm.y(),
+          pose.translation_mm.z(), result.magnification, result.part->rounds.size());
+    } else {
+      std::printf("ramp: columns %d..%d, thin end at row %.2f, thick end at row %.2f (%s)\n",
+                  result.ramp.column_begin, result.ramp.column_end - 1, result.ramp.thin_row,
+                  result.ramp.thick_row, result.ramp.automatic_rows ? "found" : "given");
+    }
     std::printf("%-6s %12s %12s %12s\n", "terms", "rms", "max |r|", "max |r|/I");
     for (const TermsFit& f : result.fit.fits)
       std::printf("%-6d %12.3e %12.3e %12.3e%s\n", f.terms, f.report.rms_residual,
                   f.report.max_abs_residual, f.report.max_relative_residual,
                   &f == &result.fit.best() ? "  <- chosen" : "");
-    std::printf("eq. 3.7: x0 = %.4f mm, x_max = %.4f mm\n", result.x0_mm, result.x_max_mm);
+    if (!result.part)
+      std::printf("eq. 3.7: x0 = %.4f mm, x_max = %.4f mm\n", result.x0_mm, result.x_max_mm);
     std::printf("uncertainty of the curve: %.2g from its table", result.table_uncertainty);
     for (const CurveInfluence& i : result.influences)
       std::printf(", %.2g from the %s (u = %.3g)", i.change, i.name.c_str(), i.uncertainty);

@@ -87,7 +87,7 @@ CurveFit fitCurve(std::span<const double> path_mm, std::span<const double> trans
   }
   const ExponentialFitReport& r = out.best().report;
   if (tried) *tried = out;
-  if (!(r.max_relative_residual <= 0.05))
+  if (!(r.max_relative_residual <= curve.max_relative_residual))
     fail(
         "{}: the exponential fit does not converge to the data: with {} terms its residual reaches "
         "{:.1f} % "

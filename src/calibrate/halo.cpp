@@ -136,36 +136,10 @@ WidthFit fitAtWidth(const Image& n, const std::vector<double>& attenuation,
 
 double weightOf(const Coefficients& k) { return k.b / (k.a + k.b); }
 
-}  // namespace
-
-Image HaloFit::primaryWith(const Image& normalized, double pitch_mm, double weight,
-                           double sigma) const {
-  const double c = -column_darkening / open_level;
-  return solvePrimary(normalized, columnAttenuation(normalized),
-                      {(1.0 - weight) / open_level, weight / open_level, c}, sigma / pitch_mm);
-}
-
-HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::string& name,
-                       const HaloOptions& options) {
-  if (!(pitch_mm > 0.0)) fail("{}: the pixel pitch must be positive, got {}", name, pitch_mm);
-  HaloFit out;
-  Image n = normalized;
-  while (std::max(n.width(), n.height()) > options.max_side) n = downsample2x(n), out.binning *= 2;
-  const double binned_pitch = pitch_mm * out.binning;
-
-  // The open beam: outside the shadow's box, gross outliers (a fixture, a
-  // collimator's edge) left out.
-  const PixelRect box = shadowBox(n, name);
-  spdlog::debug("{}: shadow box {} of {}x{} binned by {}", name, toString(box), n.width(),
-                n.height(), out.binning);
-  out.shadow = {box.x * out.binning, box.y * out.binning, box.width * out.binning,
-                box.height * out.binning};
-  std::vector<int> open;
-  for (int y = 0; y < n.height(); ++y)
-    for (int x = 0; x < n.width(); ++x) {
-      const bool inside = x >= box.x && x < box.right() && y >= box.y && y < box.bottom();
-      if (!inside && n(x, y) > 0.5f && n(x, y) < 1.5f) open.push_back(y * n.width() + x);
-    }
+// Refuses an open beam too small, or not open (a part that fills the
+// radiograph leaves pieces of itself outside the box of its sharp edges).
+void checkOpenBeam(const Image& n, const std::vector<int>& open, const std::string& name,
+                   const HaloOptions& options, HaloFit& out) {
   out.open_pixels = static_cast<int>(open.size());
   const double open_fraction = static_cast<double>(open.size()) / static_cast<double>(n.size());
   if (open_fraction < options.min_open_fraction)
@@ -175,8 +149,6 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
         "\"scatter\"",
         name, 100.0 * open_fraction, toString(out.shadow), 100.0 * options.min_open_fraction);
   {
-    // A part that fills the radiograph leaves pieces of itself outside the
-    // box of its sharp edges: that is no open beam.
     std::vector<float> levels;
     for (const int i : open) levels.push_back(n.pixels()[static_cast<size_t>(i)]);
     const auto middle = levels.begin() + static_cast<std::ptrdiff_t>(levels.size() / 2);
@@ -188,16 +160,24 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
           "fill the radiograph; give the job's \"scatter\"",
           name, toString(out.shadow), static_cast<double>(*middle), options.min_open_level);
   }
+}
 
+// The width's search and what follows from its best fit, shared by both
+// estimates: `fitAt(sigma_px)` fits (a, b, c) at one width (binned pixels)
+// over `count` pixels; `out` has its binning and shadow set.
+template <typename FitAt>
+void searchWidth(const FitAt& fitAt, size_t count, const Image& normalized, double pitch_mm,
+                 const std::string& name, const HaloOptions& options, HaloFit& out) {
   // The width: a logarithmic grid, then golden sections around its best point.
-  const std::vector<double> attenuation = columnAttenuation(n);
+  const int width = std::max(normalized.width(), normalized.height()) / out.binning;
+  const double binned_pitch = pitch_mm * out.binning;
   const double low = std::max(options.min_sigma_px, options.min_sigma_mm / pitch_mm) / out.binning;
-  const double high = options.max_sigma_fraction * std::max(n.width(), n.height());
+  const double high = options.max_sigma_fraction * width;
   constexpr int kGrid = 24;
   std::vector<WidthFit> grid;
   for (int i = 0; i < kGrid; ++i) {
     const double sigma = low * std::pow(high / low, i / (kGrid - 1.0));
-    grid.push_back(fitAtWidth(n, attenuation, open, sigma));
+    grid.push_back(fitAt(sigma));
     out.sigma_mm.push_back(sigma * binned_pitch);
     out.residual_rms.push_back(grid.back().rms);
   }
@@ -244,7 +224,7 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
     // Without a halo G(P) is 1 in the open beam: a + b is its level.
     out.primary = solvePrimary(normalized, columnAttenuation(normalized),
                                {best.k.a + best.k.b, 0.0, best.k.c}, 1.0);
-    return out;
+    return;
   }
   if (best_at == kGrid - 1)
     fail(
@@ -254,7 +234,7 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
   double lo = std::log(grid[static_cast<size_t>(best_at - 1)].sigma_px);
   double hi = std::log(grid[static_cast<size_t>(best_at + 1)].sigma_px);
   const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
-  auto at = [&](double t) { return fitAtWidth(n, attenuation, open, std::exp(t)); };
+  auto at = [&](double t) { return fitAt(std::exp(t)); };
   double t1 = hi - ratio * (hi - lo), t2 = lo + ratio * (hi - lo);
   WidthFit f1 = at(t1), f2 = at(t2);
   for (int i = 0; i < 14; ++i) {
@@ -271,8 +251,7 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
   // the weight's from the least squares at that width combined with its
   // change across the width's uncertainty.
   const double t = std::log(best.sigma_px), h = 0.05;
-  const size_t count = open.size();
-  auto sum = [&](const WidthFit& fit) { return fit.rms * fit.rms * static_cast<double>(count); };
+    auto sum = [&](const WidthFit& fit) { return fit.rms * fit.rms * static_cast<double>(count); };
   const WidthFit minus = at(t - h), plus = at(t + h);
   const double curvature = (sum(plus) - 2.0 * sum(best) + sum(minus)) / (h * h);
   const double u_log_sigma =
@@ -302,6 +281,81 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
   out.rms = best.rms;
   out.primary =
       solvePrimary(normalized, columnAttenuation(normalized), best.k, sigma_mm / pitch_mm);
+}
+
+}  // namespace
+
+Image HaloFit::primaryWith(const Image& normalized, double pitch_mm, double weight,
+                           double sigma) const {
+  const double c = -column_darkening / open_level;
+  return solvePrimary(normalized, columnAttenuation(normalized),
+                      {(1.0 - weight) / open_level, weight / open_level, c}, sigma / pitch_mm);
+}
+
+HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::string& name,
+                       const HaloOptions& options) {
+  if (!(pitch_mm > 0.0)) fail("{}: the pixel pitch must be positive, got {}", name, pitch_mm);
+  HaloFit out;
+  Image n = normalized;
+  while (std::max(n.width(), n.height()) > options.max_side) n = downsample2x(n), out.binning *= 2;
+
+  // The open beam: outside the shadow's box, gross outliers (a fixture, a
+  // collimator's edge) left out.
+  const PixelRect box = shadowBox(n, name);
+  spdlog::debug("{}: shadow box {} of {}x{} binned by {}", name, toString(box), n.width(),
+                n.height(), out.binning);
+  out.shadow = {box.x * out.binning, box.y * out.binning, box.width * out.binning,
+                box.height * out.binning};
+  std::vector<int> open;
+  for (int y = 0; y < n.height(); ++y)
+    for (int x = 0; x < n.width(); ++x) {
+      const bool inside = x >= box.x && x < box.right() && y >= box.y && y < box.bottom();
+      if (!inside && n(x, y) > 0.5f && n(x, y) < 1.5f) open.push_back(y * n.width() + x);
+    }
+  checkOpenBeam(n, open, name, options, out);
+  const std::vector<double> attenuation = columnAttenuation(n);
+  searchWidth([&](double sigma) { return fitAtWidth(n, attenuation, open, sigma); }, open.size(),
+              normalized, pitch_mm, name, options, out);
+  return out;
+}
+
+}  // namespace xgauge
+
+namespace xgauge {
+
+HaloFit fitScatterWithPaths(const Image& normalized, const Image& path_mm, double pitch_mm,
+                            const std::string& name, const HaloOptions& options) {
+  if (!(pitch_mm > 0.0)) fail("{}: the pixel pitch must be positive, got {}", name, pitch_mm);
+  HaloFit out;
+  Image n = normalized;
+  while (n.width() > path_mm.width() && n.width() > 1) n = downsample2x(n), out.binning *= 2;
+  if (n.width() != path_mm.width() || n.height() != path_mm.height())
+    fail(
+        "{}: the path map is {}x{}, and no binning of the {}x{} radiograph by a power of 2 has "
+        "that size",
+        name, path_mm.width(), path_mm.height(), normalized.width(), normalized.height());
+  // The open beam: no path at the pixel or its 8 neighbours (a pixel the
+  // outline crosses may have none at its centre); its box, the shadow.
+  std::vector<int> open;
+  int x0 = n.width(), y0 = n.height(), x1 = 0, y1 = 0;
+  for (int y = 0; y < n.height(); ++y)
+    for (int x = 0; x < n.width(); ++x) {
+      bool clear = true;
+      for (int v = std::max(0, y - 1); v <= std::min(n.height() - 1, y + 1); ++v)
+        for (int u = std::max(0, x - 1); u <= std::min(n.width() - 1, x + 1); ++u)
+          clear &= !(path_mm(u, v) > 0.0f);
+      if (path_mm(x, y) > 0.0f)
+        x0 = std::min(x0, x), y0 = std::min(y0, y), x1 = std::max(x1, x + 1),
+        y1 = std::max(y1, y + 1);
+      if (clear && n(x, y) > 0.5f && n(x, y) < 1.5f) open.push_back(y * n.width() + x);
+    }
+  if (x1 <= x0) fail("{}: the part's model casts no shadow in the radiograph", name);
+  out.shadow = {x0 * out.binning, y0 * out.binning, (x1 - x0) * out.binning,
+                (y1 - y0) * out.binning};
+  checkOpenBeam(n, open, name, options, out);
+  const std::vector<double> attenuation = columnAttenuation(n);
+  searchWidth([&](double sigma) { return fitAtWidth(n, attenuation, open, sigma); }, open.size(),
+              normalized, pitch_mm, name, options, out);
   return out;
 }
 

@@ -22,15 +22,14 @@ constexpr int64_t kPixelsPerBin = 100;
 constexpr int64_t kMinBinPixels = 20;
 constexpr double kSmoothPathMm = 0.01;  // largest second difference of the path around a pixel
 constexpr double kSettled = 2e-4;       // material change that ends the rounds
+// The misfit a round's provisional curve may leave (relative to the
+// intensity): far beyond what a registered table shows, short of a table of
+// no part at all.
+constexpr double kProvisionalResidual = 0.5;
 
-// The (path, scatter-free intensity) table of the current poses, binned by path.
-struct Table {
-  std::vector<double> path_mm, transmission;
-  double noise = 0.0;  // median standard error of a bin's mean
-  int64_t pixels = 0;
-};
+}  // namespace
 
-Table tabulate(ForwardModel& model, const std::vector<double>& theta) {
+RegisteredTable registeredTable(ForwardModel& model, const std::vector<double>& theta) {
   const int level = model.levelForWidth(2048);
   const ScatterModel& scatter = model.job().scatter;
   std::vector<std::pair<double, double>> pairs;
@@ -66,7 +65,7 @@ Table tabulate(ForwardModel& model, const std::vector<double>& theta) {
         pairs.push_back({p(x, y), intensity});
       }
   }
-  Table table;
+  RegisteredTable table;
   table.pixels = static_cast<int64_t>(pairs.size());
   double longest = 0.0;
   for (const auto& [x, i] : pairs) longest = std::max(longest, x);
@@ -105,8 +104,6 @@ Table tabulate(ForwardModel& model, const std::vector<double>& theta) {
   return table;
 }
 
-}  // namespace
-
 PartCalibrationJob PartCalibrationJob::load(const std::filesystem::path& path) {
   const ConfigNode root = ConfigNode::loadFile(path);
   PartCalibrationJob job;
@@ -144,43 +141,90 @@ PartCalibration calibrateFromPart(const PartCalibrationJob& job) {
 void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out) {
   const auto start = std::chrono::steady_clock::now();
   out = PartCalibration{};
+  std::vector<double> theta = poseKnownPart(job, out);
+  refineKnownPart(job, std::move(theta), out);
+  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+}
+
+std::vector<double> poseKnownPart(const PartCalibrationJob& job, PartCalibration& out) {
   out.step = "the initial material (thesis eq. 3.8)";
-  const CurveOptions curve{.max_terms = job.terms,
-                           .rate_floor_per_mm = job.rate_floor ? job.rate_floor->per_mm : 0.0};
   if (!job.rate_floor)
     spdlog::warn(
         "no calibration.rate_floor: the curve's rates are not bounded by the material's "
         "attenuation at the tube voltage, and it may level off beyond the calibrated paths");
 
-  // 1. Eq. 3.8 from the uniform region.
+  // 1. Eq. 3.8 from the uniform region, or from the darkest pixels.
   const RadiographSpec& spec =
       job.measurement().radiographs[static_cast<size_t>(job.initial_radiograph)];
-  {
-    const Image& image =
-        job.inputs->radiographs[static_cast<size_t>(job.initial_radiograph)]->levels.front();
-    if (!image.rect().contains(job.initial_region))
-      fail("{}: the initial region {} lies outside the {}x{} image", spec.image.string(),
-           toString(job.initial_region), image.width(), image.height());
-    out.initial_intensity = meanOf(image, job.initial_region);
+  const PreparedRadiograph& prepared =
+      *job.inputs->radiographs[static_cast<size_t>(job.initial_radiograph)];
+  std::string region = "the darkest 2 % of the roi";
+  if (job.initial_region) {
+    const Image& image = prepared.levels.front();
+    region = "the initial region " + toString(*job.initial_region);
+    if (!image.rect().contains(*job.initial_region))
+      fail("{}: {} lies outside the {}x{} image", spec.image.string(), region, image.width(),
+           image.height());
+    out.initial_intensity = meanOf(image, *job.initial_region);
+  } else {
+    // On a copy about 256 px wide: the percentile of a few tens of thousands
+    // of pixels, with the noise averaged down.
+    size_t level = 0;
+    while (level + 1 < prepared.levels.size() && prepared.levels[level + 1].width() >= 256) ++level;
+    out.initial_intensity =
+        percentileOf(prepared.levels[level].crop(prepared.rois[level]), kDarkestPercent);
   }
   if (!(out.initial_intensity > 0.0 && out.initial_intensity < 1.0))
     fail(
-        "{}: the initial region {} has mean intensity {:.4f}; eq. 3.8 needs one in (0, 1), where "
-        "the part attenuates",
-        spec.image.string(), toString(job.initial_region), out.initial_intensity);
+        "{}: {} has mean intensity {:.4f}; eq. 3.8 needs one in (0, 1), where the part "
+        "attenuates",
+        spec.image.string(), region, out.initial_intensity);
   out.initial_mu_per_mm = -std::log(out.initial_intensity) / job.initial_path_mm;
   const ExponentialSum initial({{1.0, out.initial_mu_per_mm}}, "thesis eq. 3.8");
   spdlog::info("initial material (eq. 3.8): I1 = {:.4f} over {:.3f} mm, mu1 = {:.4f} /mm",
                out.initial_intensity, job.initial_path_mm, out.initial_mu_per_mm);
 
-  // 2. Poses with that material.
+  // 2. Poses with that material or, without a uniform region (the darkest
+  // pixels, at the longest path), with a curve bent as beam hardening bends
+  // it through the same point: two terms of 0.8 and 2 times its rate, about
+  // equal to it at the longest path and falling faster at short ones (eq.
+  // 3.8's exponential makes a part's thin paths look thicker, which pulls
+  // the pose of a part seen in part).
   out.step = "the poses with the initial material";
-  ForwardModel model(*job.inputs, initial);
+  const double mu = out.initial_mu_per_mm;
+  const ExponentialSum bent({{0.7, 0.8 * mu}, {0.3, 2.0 * mu}}, "eq. 3.8, bent");
+  ForwardModel model(*job.inputs, job.initial_region ? initial : bent);
   std::vector<double> theta = model.start();
   MeasureOptions provisional;
   provisional.assess = false;
+  if (job.pose_schedule) provisional.schedule = &*job.pose_schedule;
   out.measurement = measure(model, theta, provisional);
   theta = out.measurement.theta;
+  if (!job.initial_region) {
+    // The bent curve is a guess: the poses again with it free (its rates
+    // no lower than the floor).
+    out.step = "the poses with a free curve";
+    ForwardModel free(*job.inputs, bent);
+    std::vector<double> with = theta;
+    free.freeMaterial(bent, with, job.rate_floor ? job.rate_floor->per_mm : 0.0);
+    MeasureOptions joint = provisional;
+    joint.search_poses = false;
+    const MeasurementResult fitted = measure(free, with, joint);
+    with = fitted.theta;
+    with.resize(theta.size());
+    spdlog::info("poses with a free curve: loss {:.6g} (with eq. 3.8's: {:.6g})",
+                 fitted.total_loss, out.measurement.total_loss);
+    theta = with;
+  }
+  return theta;
+}
+
+void refineKnownPart(const PartCalibrationJob& job, std::vector<double> theta,
+                     PartCalibration& out) {
+  const CurveOptions curve{.max_terms = job.terms,
+                           .rate_floor_per_mm = job.rate_floor ? job.rate_floor->per_mm : 0.0};
+  const ExponentialSum initial({{1.0, out.initial_mu_per_mm}}, "thesis eq. 3.8");
+  ForwardModel model(*job.inputs, initial);
 
   // 3-4. The material from the registered pixels, then everything together
   // (poses, material, any free dimension) by least squares on the residuals,
@@ -188,11 +232,13 @@ void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out) {
   ExponentialSum material = initial;
   for (int round = 0; round < job.rounds; ++round) {
     out.step = fmt::format("round {}: the table of registered pixels", round + 1);
-    const Table table = tabulate(model, theta);
+    const RegisteredTable table = registeredTable(model, theta);
     out.path_mm = table.path_mm, out.transmission = table.transmission;
     out.step = fmt::format("round {}: fit the curve", round + 1);
     CurveOptions round_curve = curve;
     round_curve.noise = table.noise;
+    // Provisional: the joint fit below corrects the poses that bend it.
+    round_curve.max_relative_residual = kProvisionalResidual;
     const CurveFit fit = fitCurve(table.path_mm, table.transmission, round_curve,
                                   "calibration round " + std::to_string(round + 1), &out.fit);
     const TermsFit& asked = fit.fits.back();  // the job's number of terms
@@ -232,7 +278,7 @@ void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out) {
   // barely sees short paths (they occur only next to edges); the binned table
   // gives every path length the same weight, as a wedge would.
   out.step = "the final table of registered pixels";
-  const Table table = tabulate(model, theta);
+  const RegisteredTable table = registeredTable(model, theta);
   out.path_mm = table.path_mm, out.transmission = table.transmission;
   out.step = "fit the final curve";
   CurveOptions final_curve = curve;
@@ -247,7 +293,6 @@ void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out) {
                   table.pixels, table.path_mm.size(), out.max_path_mm));
   out.material.setTransmissionUncertainty(out.fit.tableUncertainty());
   out.material.setCalibratedRange(std::array<double, 2>{table.path_mm.front(), out.max_path_mm});
-  out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   out.step = "done";
 }
 

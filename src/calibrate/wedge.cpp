@@ -1,5 +1,7 @@
 #include "xgauge/calibrate/wedge.h"
 
+#include "wedge_part.h"
+
 #include "xgauge/core/config.h"
 #include "xgauge/image/blur.h"
 #include "xgauge/image/radiograph.h"
@@ -15,10 +17,6 @@
 namespace xgauge {
 
 namespace {
-
-// Five times the default uncertainty of a material's transmission: a curve
-// this uncertain moves a 12 mm thickness by about 0.2 mm.
-constexpr double kLargeCurveUncertainty = 0.005;
 
 // Steps 3 to 6 on an image with the scatter taken out and its ramp found:
 // the geometry, the table and the curve, for the wedge's `thickness_mm` and
@@ -143,12 +141,44 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
   }
   job.radiograph.white_region = pixelRectFromConfig(r.at("white_region"));
   const ConfigNode wedge = root.at("wedge");
-  job.max_thickness_mm = wedge.at("max_thickness_mm").number(0.01, 1e4);
-  job.ramp_length_mm = wedge.at("ramp_length_mm").number(0.1, 1e5);
-  if (auto u = wedge.find("max_thickness_uncertainty_mm"))
-    job.max_thickness_uncertainty_mm = u->number(0.0, 10.0);
-  if (auto u = wedge.find("ramp_length_uncertainty_mm"))
-    job.ramp_length_uncertainty_mm = u->number(0.0, 10.0);
+  if (auto model = wedge.find("model")) {
+    // The wedge as a known part: its model and every caliper value.
+    for (const char* key : {"max_thickness_mm", "ramp_length_mm"})
+      if (wedge.has(key))
+        wedge.at(key).fail("the wedge's model gives its dimensions: leave this key out");
+    if (root.has("ramp")) root.at("ramp").fail("a wedge fitted as a known part has no ramp to give");
+    job.model_file = folder / model->string();
+    job.model = std::make_shared<const PartModel>(PartModel::load(job.model_file));
+    const ConfigNode dims = wedge.at("dimensions");
+    for (const std::string& name : dims.keys()) {
+      try {
+        job.model->dimensionIndex(name);
+      } catch (const Error& e) {
+        dims.at(name).fail(e.message());
+      }
+      job.caliper[name] = dims.at(name).number();
+    }
+    for (const Dimension& d : job.model->dimensions())
+      if (!job.caliper.contains(d.name))
+        dims.fail(fmt::format(
+            "the caliper value of '{}' is missing: a calibration wedge's every dimension is "
+            "measured, not taken from its drawing",
+            d.name));
+    try {
+      job.model->validate(job.model->values(job.caliper));
+    } catch (const Error& e) {
+      dims.fail(e.message());
+    }
+    if (auto u = wedge.find("dimension_uncertainty_mm"))
+      job.caliper_uncertainty_mm = u->number(0.0, 10.0);
+  } else {
+    job.max_thickness_mm = wedge.at("max_thickness_mm").number(0.01, 1e4);
+    job.ramp_length_mm = wedge.at("ramp_length_mm").number(0.1, 1e5);
+    if (auto u = wedge.find("max_thickness_uncertainty_mm"))
+      job.max_thickness_uncertainty_mm = u->number(0.0, 10.0);
+    if (auto u = wedge.find("ramp_length_uncertainty_mm"))
+      job.ramp_length_uncertainty_mm = u->number(0.0, 10.0);
+  }
   if (auto floor = root.find("rate_floor")) job.rate_floor = RateFloor::fromConfig(*floor);
   if (auto scatter = root.find("scatter"))
     job.scatter = ScatterModel::fromConfig(*scatter), job.estimate_scatter = false;
@@ -171,6 +201,26 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
   root.finish();
   job.machine = Machine::load(job.machine_file);
   return job;
+}
+
+// Five times the default uncertainty of a material's transmission: a curve
+// this uncertain moves a 12 mm thickness by about 0.2 mm.
+void combineCurveUncertainty(const std::string& name, WedgeCalibration& out) {
+  double variance = out.table_uncertainty * out.table_uncertainty;
+  for (const CurveInfluence& influence : out.influences)
+    variance += influence.change * influence.change;
+  out.material.setTransmissionUncertainty(std::sqrt(variance));
+  if (std::sqrt(variance) > kLargeCurveUncertainty) {
+    std::string largest = "table";
+    double change = out.table_uncertainty;
+    for (const CurveInfluence& influence : out.influences)
+      if (influence.change > change) largest = influence.name, change = influence.change;
+    spdlog::warn(
+        "{}: the curve's standard uncertainty, {:.4f}, is large (mostly from the {}, {:.4f}): "
+        "every dimension measured along the beam with it carries it; check the shot and the "
+        "wedge's dimensions",
+        name, std::sqrt(variance), largest, change);
+  }
 }
 
 WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
@@ -206,33 +256,54 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
           .image;
   Image image = normalized;
   out.normalized = normalized;  // what a failure below shows
+  std::optional<HaloFit> found;
   if (job.estimate_scatter) {
     out.step = "estimate the scatter";
-    HaloFit halo;
     try {
-      halo = fitScatterHalo(normalized, machine.pitch_u_mm, name);
-    } catch (const Error&) {
-      // A radiograph without a wedge says so rather than that it has no halo.
-      out.step = "find the ramp";
-      detectRamp(normalized, job.ramp, name);
-      out.step = "estimate the scatter";
-      throw;
+      found = fitScatterHalo(normalized, machine.pitch_u_mm, name);
+    } catch (const Error& e) {
+      if (!job.model) {
+        // A radiograph without a wedge says so rather than that it has no
+        // halo.
+        out.step = "find the ramp";
+        detectRamp(normalized, job.ramp, name);
+        out.step = "estimate the scatter";
+        throw;
+      }
+      // The known part's paths decide it once the wedge is posed.
+      spdlog::info(
+          "{}: the open beam alone does not give the scatter ({}); it is fitted with the "
+          "wedge's paths, once the wedge is posed",
+          name, e.message());
     }
-    spdlog::info(
-        "{}: scatter from the halo around the wedge: weight {:.4f} +- {:.4f}, sigma {:.1f} +- "
-        "{:.1f} mm; column darkening {:.4f} per unit attenuation",
-        name, halo.scatter.weight, halo.scatter.weight_uncertainty, halo.scatter.sigma_mm,
-        halo.scatter.sigma_uncertainty_mm, halo.column_darkening);
-    image = std::move(halo.primary);
-    halo.primary = Image();
-    out.scatter = halo.scatter;
-    out.halo = std::move(halo);
+    if (found && !job.model) {
+      HaloFit& halo = *found;
+      spdlog::info(
+          "{}: scatter from the halo around the wedge: weight {:.4f} +- {:.4f}, sigma {:.1f} +- "
+          "{:.1f} mm; column darkening {:.4f} per unit attenuation",
+          name, halo.scatter.weight, halo.scatter.weight_uncertainty, halo.scatter.sigma_mm,
+          halo.scatter.sigma_uncertainty_mm, halo.column_darkening);
+      image = std::move(halo.primary);
+      halo.primary = Image();
+      out.scatter = halo.scatter;
+      out.halo = std::move(halo);
+    }
   } else {
     out.scatter = job.scatter;
     if (job.scatter.enabled())
       image = job.scatter.remove(image, machine.pitch_u_mm, spec.white_region);
   }
   out.normalized = image;
+  if (job.model) {
+    // 2-7. The wedge fitted as a known part (wedge_part.h), posed in the
+    // radiograph as it is (an outline does not need the scatter removed);
+    // the halo around the box of its edges stays only a fallback for the
+    // one around the posed wedge.
+    calibrateKnownWedge(job, normalized, image, std::move(found), out);
+    out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+    out.step = "done";
+    return;
+  }
 
   // 2-6. The ramp and the curve along the columns or, when that fails and
   // the job gives no ramp, along the rows (the wedge turned by 90 degrees).
@@ -318,21 +389,7 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
             job.max_thickness_mm + job.max_thickness_uncertainty_mm, job.ramp_length_mm);
   propagate("wedge ramp_length_mm", job.ramp_length_mm, job.ramp_length_uncertainty_mm, image,
             job.max_thickness_mm, job.ramp_length_mm + job.ramp_length_uncertainty_mm);
-  double variance = out.table_uncertainty * out.table_uncertainty;
-  for (const CurveInfluence& influence : out.influences)
-    variance += influence.change * influence.change;
-  out.material.setTransmissionUncertainty(std::sqrt(variance));
-  if (std::sqrt(variance) > kLargeCurveUncertainty) {
-    std::string largest = "table";
-    double change = out.table_uncertainty;
-    for (const CurveInfluence& influence : out.influences)
-      if (influence.change > change) largest = influence.name, change = influence.change;
-    spdlog::warn(
-        "{}: the curve's standard uncertainty, {:.4f}, is large (mostly from the {}, {:.4f}): "
-        "every dimension measured along the beam with it carries it; check the shot and the "
-        "wedge's dimensions",
-        name, std::sqrt(variance), largest, change);
-  }
+  combineCurveUncertainty(name, out);
   // The table's first row, on the curve's path axis after eq. 3.7.
   const double first =
       (out.path_mm.front() - out.x0_mm) * out.x_max_mm / (out.x_max_mm - out.x0_mm);

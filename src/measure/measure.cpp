@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -99,25 +100,31 @@ void fitAxis(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     runner.run(poseStage(spec.name + ": axis, finer", finer, axis, r, model));
 }
 
-// A free or rotated radiograph: a global search of (ry, x, y), then 6-DOF.
+// A free or rotated radiograph: a global search of (r, x, y) (r the
+// schedule's search rotation), at one depth or several, then 6-DOF.
 void fitPose(ForwardModel& model, std::vector<double>& theta, Runner& runner,
              const PoseSchedule& schedule, int r) {
   const RadiographSpec& spec = model.spec(r);
   const ParameterLayout& p = model.parameters();
   const std::vector<int> pose = model.poseIndices(r);
-  const std::vector<int> search{p.index(spec.name + "/rotation/ry"),
-                                p.index(spec.name + "/position/x"),
-                                p.index(spec.name + "/position/y")};
-  StagePlan global = poseStage(spec.name + ": pose search", schedule.search, search, r, model);
-  if (schedule.search_around_shadow) {
-    // Start at the shadow's centroid seen at the middle depth; search a
-    // window of a fraction of the part's size around it (the absorption's
-    // centroid is near the projected centre), the rotation over its bounds.
-    const Machine& machine = model.machine();
-    const Vec3 c = machine.detectorPoint(shadowCentroid(model.radiograph(r), global.level).x(),
-                                         shadowCentroid(model.radiograph(r), global.level).y());
-    const auto z = static_cast<size_t>(p.index(spec.name + "/position/z"));
-    const double lambda = 1.0 - theta[z] / machine.source_detector_distance_mm;
+  static constexpr std::array<const char*, 3> kRotations{"rx", "ry", "rz"};
+  const std::vector<int> search{
+      p.index(fmt::format("{}/rotation/{}", spec.name,
+                          kRotations.at(static_cast<size_t>(schedule.search_rotation)))),
+      p.index(spec.name + "/position/x"), p.index(spec.name + "/position/y")};
+  const auto z = static_cast<size_t>(p.index(spec.name + "/position/z"));
+  const Machine& machine = model.machine();
+  const double d = machine.source_detector_distance_mm;
+  // The global search at the depth theta[z].
+  auto globalStage = [&](const std::string& name) {
+    StagePlan global = poseStage(name, schedule.search, search, r, model);
+    if (!schedule.search_around_shadow) return global;
+    // Start at the shadow's centroid seen at this depth; search a window of
+    // a fraction of the part's size around it (the absorption's centroid is
+    // near the projected centre), the rotation over its bounds.
+    const Vec2 centroid = shadowCentroid(model.radiograph(r), global.level);
+    const Vec3 c = machine.detectorPoint(centroid.x(), centroid.y());
+    const double lambda = 1.0 - theta[z] / d;
     const auto ix = static_cast<size_t>(search[1]), iy = static_cast<size_t>(search[2]);
     theta[ix] = std::clamp(lambda * c.x(), model.lower()[ix], model.upper()[ix]);
     theta[iy] = std::clamp(lambda * c.y(), model.lower()[iy], model.upper()[iy]);
@@ -129,17 +136,38 @@ void fitPose(ForwardModel& model, std::vector<double>& theta, Runner& runner,
       global.lower.push_back(rotation ? lo : std::max(lo, theta[i] - window));
       global.upper.push_back(rotation ? hi : std::min(hi, theta[i] + window));
     }
-  }
-  if (schedule.multistart > 0) {
-    // Refine the best few distinct samples, keep the best.
-    std::vector<std::pair<double, std::vector<double>>> record;
+    return global;
+  };
+  std::vector<std::pair<double, std::vector<double>>> record;
+  std::vector<int> searched = search;
+  if (schedule.search_depths > 0) {
+    // Depths evenly spread in magnification M = D / (D - z) over the bounds.
+    searched.push_back(static_cast<int>(z));
+    const double m_lo = d / (d - model.lower()[z]), m_hi = d / (d - model.upper()[z]);
     runner.recordInto(&record);
-    runner.run(global);
+    for (int k = 0; k < schedule.search_depths; ++k) {
+      const double t = schedule.search_depths > 1 ? k / (schedule.search_depths - 1.0) : 0.5;
+      const double m = m_lo * std::pow(m_hi / m_lo, t);
+      theta[z] = std::clamp(d * (1.0 - 1.0 / m), model.lower()[z], model.upper()[z]);
+      runner.run(globalStage(
+          fmt::format("{}: pose search at magnification {:.2f}", spec.name, d / (d - theta[z]))));
+    }
     runner.recordInto(nullptr);
+  } else if (schedule.multistart > 0) {
+    runner.recordInto(&record);
+    runner.run(globalStage(spec.name + ": pose search"));
+    runner.recordInto(nullptr);
+  } else {
+    runner.run(globalStage(spec.name + ": pose search"));
+    runner.run(poseStage(spec.name + ": pose", schedule.local, pose, r, model));
+  }
+  if (!record.empty()) {
+    // Refine the best few distinct samples, keep the best.
     double best = kInf;
     std::vector<double> best_theta = theta;
-    const auto starts = distinctBest(record, search, model,
-                                     static_cast<size_t>(schedule.multistart), schedule.separation);
+    const auto starts =
+        distinctBest(record, searched, model,
+                     static_cast<size_t>(std::max(1, schedule.multistart)), schedule.separation);
     for (size_t k = 0; k < starts.size(); ++k) {
       theta = starts[k];
       const double loss = runner.run(poseStage(
@@ -147,9 +175,6 @@ void fitPose(ForwardModel& model, std::vector<double>& theta, Runner& runner,
       if (loss < best) best = loss, best_theta = theta;
     }
     theta = best_theta;
-  } else {
-    runner.run(global);
-    runner.run(poseStage(spec.name + ": pose", schedule.local, pose, r, model));
   }
   for (const PoseStage& finer : schedule.finer)
     runner.run(poseStage(spec.name + ": pose, finer", finer, pose, r, model));
@@ -265,7 +290,7 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
                           const MeasureOptions& options) {
   const auto start = std::chrono::steady_clock::now();
   const MeasurementJob& job = model.job();
-  const Schedule& schedule = scheduleFor(job.schedule);
+  const Schedule& schedule = options.schedule ? *options.schedule : scheduleFor(job.schedule);
   XG_CHECK(theta.size() == static_cast<size_t>(model.size()), "theta has the wrong size");
   if (const auto why = model.infeasibility(theta))
     spdlog::warn(

@@ -179,12 +179,58 @@ void writeFailure(const std::filesystem::path& folder, nlohmann::json diagnostic
 
 }  // namespace
 
+namespace {
+
+// A part calibration's outputs (writeCalibrationOutputs with `figures`) with
+// the last pose fit's radiographs on the page and its result.json, simulated
+// and difference images in `folder`/poses.
+void writeKnownPartOutputs(const PartCalibrationJob& job, const PartCalibration& result,
+                           const ScatterModel* scatter, const nlohmann::json& figures,
+                           const TrueCurve& true_curve, const std::filesystem::path& folder,
+                           bool html_report) {
+  // The last pose fit, with the calibrated material: the residual images show
+  // what the model does not explain (thesis Figure 5.5, docs/method.md).
+  ForwardModel model(*job.inputs, result.material);
+  MeasurementResult fitted = result.measurement;
+  fitted.theta.resize(static_cast<size_t>(model.size()));  // without the free material's parameters
+  nlohmann::json pictures = nullptr;
+  std::vector<Image> simulated = simulateRadiographs(model, fitted.theta);
+  if (html_report)
+    pictures = radiographPictures(model, fitted.theta, simulated), pictures["kind"] = "part";
+  CalibrationData data;
+  data.path_mm = result.path_mm;
+  data.transmission = result.transmission;
+  data.x_max_mm = result.max_path_mm;
+  writeCalibrationOutputs(folder, result.material, scatter, figures, data, true_curve, pictures,
+                          html_report);
+  writeMeasurementOutputs(model, fitted, folder / "poses", false, nullptr, std::move(simulated));
+}
+
+nlohmann::json initialJson(const PartCalibrationJob& job, const PartCalibration& result) {
+  const PixelRect* r = job.initial_region ? &*job.initial_region : nullptr;
+  return {{"radiograph",
+           job.measurement().radiographs[static_cast<size_t>(job.initial_radiograph)].name},
+          {"region", r ? nlohmann::json{r->x, r->y, r->width, r->height} : nlohmann::json(nullptr)},
+          {"darkest_percent", r ? nlohmann::json(nullptr) : nlohmann::json(kDarkestPercent)},
+          {"path_mm", job.initial_path_mm},
+          {"intensity", result.initial_intensity},
+          {"mu_per_mm", result.initial_mu_per_mm}};
+}
+
+}  // namespace
+
 void writeFailedWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& partial,
                                  const std::string& error, const std::filesystem::path& folder,
                                  bool html_report) {
+  nlohmann::json found = nlohmann::json(nullptr);
+  if (partial.part && partial.part_job)
+    found = {{"initial", initialJson(*partial.part_job, *partial.part)},
+             {"rounds", roundsJson(*partial.part)},
+             {"poses", posesJson(*partial.part)}};
   writeFailure(folder,
                {{"kind", "wedge"},
                 {"step", partial.step},
+                {"known_part", found},
                 {"error", error},
                 {"job", job.file.string()},
                 {"radiograph", job.radiograph.image.string()},
@@ -239,6 +285,31 @@ nlohmann::json wedgeUncertaintyJson(const WedgeCalibrationJob& job,
 void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& result,
                            const TrueCurve& true_curve, const std::filesystem::path& folder,
                            bool html_report) {
+  if (result.part) {
+    // The wedge fitted as a known part: its pose fit's pictures and poses/.
+    const PartCalibration& part = *result.part;
+    const nlohmann::json figures = {
+        {"kind", "wedge"},
+        {"method", "known part"},
+        {"job", job.file.string()},
+        {"radiograph", job.radiograph.image.string()},
+        {"ramp", nullptr},
+        {"model", {{"file", job.model_file.string()}, {"caliper", job.caliper},
+                   {"caliper_uncertainty_mm", job.caliper_uncertainty_mm}}},
+        {"initial", initialJson(*result.part_job, part)},
+        {"rounds", roundsJson(part)},
+        {"poses", posesJson(part)},
+        {"geometry", {{"magnification", result.magnification}, {"x_max_mm", result.x_max_mm}}},
+        {"fit", toJson(result.fit)},
+        {"scatter", wedgeScatterJson(job, result)},
+        {"uncertainty", wedgeUncertaintyJson(job, result)},
+        {"material", result.material.toJson()},
+        {"table", {{"path_mm", result.path_mm}, {"transmission", result.transmission}}},
+        {"seconds", result.seconds}};
+    writeKnownPartOutputs(*result.part_job, part, &result.scatter, figures, true_curve, folder,
+                          html_report);
+    return;
+  }
   // The table on the final curve's path axis: eq. 3.7 maps x to x s + x0.
   const double s = (result.x_max_mm - result.x0_mm) / result.x_max_mm;
   std::vector<double> shifted;
@@ -278,43 +349,19 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
 void writePartCalibration(const PartCalibrationJob& job, const PartCalibration& result,
                           const TrueCurve& true_curve, const std::filesystem::path& folder,
                           bool html_report) {
-  const nlohmann::json rounds = roundsJson(result);
-  const nlohmann::json poses = posesJson(result);
-  const nlohmann::json figures = {
-      {"kind", "part"},
-      {"job", job.measurement().file.string()},
-      {"initial",
-       {{"radiograph",
-         job.measurement().radiographs[static_cast<size_t>(job.initial_radiograph)].name},
-        {"region",
-         {job.initial_region.x, job.initial_region.y, job.initial_region.width,
-          job.initial_region.height}},
-        {"path_mm", job.initial_path_mm},
-        {"intensity", result.initial_intensity},
-        {"mu_per_mm", result.initial_mu_per_mm}}},
-      {"rounds", rounds},
-      {"fit", toJson(result.fit)},
-      {"max_path_mm", result.max_path_mm},
-      {"material", result.material.toJson()},
-      {"poses", poses},
-      {"table", {{"path_mm", result.path_mm}, {"transmission", result.transmission}}},
-      {"seconds", result.seconds}};
-  // The last pose fit, with the calibrated material: the residual images show
-  // what the model does not explain (thesis Figure 5.5, docs/method.md).
-  ForwardModel model(*job.inputs, result.material);
-  MeasurementResult fitted = result.measurement;
-  fitted.theta.resize(static_cast<size_t>(model.size()));  // without the free material's parameters
-  nlohmann::json pictures = nullptr;
-  std::vector<Image> simulated = simulateRadiographs(model, fitted.theta);
-  if (html_report)
-    pictures = radiographPictures(model, fitted.theta, simulated), pictures["kind"] = "part";
-  CalibrationData data;
-  data.path_mm = result.path_mm;
-  data.transmission = result.transmission;
-  data.x_max_mm = result.max_path_mm;
-  writeCalibrationOutputs(folder, result.material, nullptr, figures, data, true_curve, pictures,
-                          html_report);
-  writeMeasurementOutputs(model, fitted, folder / "poses", false, nullptr, std::move(simulated));
+  const nlohmann::json figures = {{"kind", "part"},
+                                  {"job", job.measurement().file.string()},
+                                  {"initial", initialJson(job, result)},
+                                  {"rounds", roundsJson(result)},
+                                  {"fit", toJson(result.fit)},
+                                  {"max_path_mm", result.max_path_mm},
+                                  {"material", result.material.toJson()},
+                                  {"poses", posesJson(result)},
+                                  {"table",
+                                   {{"path_mm", result.path_mm},
+                                    {"transmission", result.transmission}}},
+                                  {"seconds", result.seconds}};
+  writeKnownPartOutputs(job, result, nullptr, figures, true_curve, folder, html_report);
 }
 
 }  // namespace xgauge

@@ -43,6 +43,10 @@ struct CurveOptions {
   double noise = 0.0;            // of one table value
   bool free_amplitude = false;   // a wedge whose thin end is not at 0 mm
   double rate_floor_per_mm = 0;  // every rate at least this (RateFloor); 0: none
+  // The largest residual relative to the intensity a fit may leave; beyond
+  // it fitCurve refuses. A provisional curve (a known-part calibration's
+  // rounds, which a joint fit of poses and material follows) may allow more.
+  double max_relative_residual = 0.05;
 };
 
 struct CurveFit {

@@ -76,4 +76,15 @@ struct HaloFit {
 HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::string& name,
                        const HaloOptions& options = {});
 
+// The same with the part's path known at every pixel (a posed known part,
+// calibrate/wedge_part.h): `path_mm` the path through the part at the
+// centre of each pixel of the radiograph binned by a power of 2 (at most
+// options.max_side a side). The open beam is then every pixel the part does
+// not cover, its neighbours neither, rather than what lies outside the box
+// of the sharp edges: a part seen in part, or one with edges of its own
+// inside its shadow (a wedge's ramp), leaves no doubt where it is. The same
+// refusals as fitScatterHalo.
+HaloFit fitScatterWithPaths(const Image& normalized, const Image& path_mm, double pitch_mm,
+                            const std::string& name, const HaloOptions& options = {});
+
 }  // namespace xgauge

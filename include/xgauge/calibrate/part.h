@@ -3,7 +3,8 @@
 //
 //   1. Initial material (thesis eq. 3.8): one exponential through I(0) = 1
 //      and the mean intensity I1 of a uniform region of known path x1,
-//      mu1 = -ln(I1) / x1.
+//      mu1 = -ln(I1) / x1 (or, for a wedge, I1 the darkest 2 % of the
+//      shadow and x1 the wedge's thickness).
 //   2. Poses: the measurement schedule (measure/measure.h) with the known
 //      dimensions fixed, finds every radiograph's pose with that material.
 //   3. Material: with the poses fixed, every pixel of every roi whose path is
@@ -50,6 +51,8 @@
 #include "xgauge/measure/inputs.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/measure/measure.h"
+#include "xgauge/measure/model.h"
+#include "xgauge/measure/schedule.h"
 
 #include <filesystem>
 #include <memory>
@@ -67,9 +70,16 @@ struct PartCalibrationJob {
   int terms = 3;
   int rounds = 4;
   int initial_radiograph = 0;  // index into measurement().radiographs
-  PixelRect initial_region;
+  // Eq. 3.8's uniform region; without it (a wedge calibration), the darkest
+  // kDarkestPercent of the radiograph's roi, which initial_path_mm then
+  // gives for the part's longest path (a calibration wedge seen through its
+  // thickness).
+  std::optional<PixelRect> initial_region;
   double initial_path_mm = 0.0;
   std::optional<RateFloor> rate_floor;
+  // The pose search to follow instead of the job's schedule's (a wedge
+  // calibration's search over the turn in plane and the depth).
+  std::optional<Schedule> pose_schedule;
 
   static PartCalibrationJob load(const std::filesystem::path& path);
 };
@@ -96,7 +106,28 @@ struct PartCalibration {
   std::string step;
 };
 
+// The percentile of the radiograph's roi that stands for the longest path
+// when the job gives no initial region.
+inline constexpr double kDarkestPercent = 2.0;
+
+// Step 3's table at `theta`: the smooth pixels' (path, scatter-free
+// intensity) pairs, binned by path. `noise` is the median standard error of
+// a bin's mean. Throws Error when too few paths remain.
+struct RegisteredTable {
+  std::vector<double> path_mm, transmission;
+  double noise = 0.0;
+  int64_t pixels = 0;
+};
+RegisteredTable registeredTable(ForwardModel& model, const std::vector<double>& theta);
+
 PartCalibration calibrateFromPart(const PartCalibrationJob& job);
+// Its steps 1 and 2 into `out` (eq. 3.8's material, the pose fit): returns
+// the parameters found.
+std::vector<double> poseKnownPart(const PartCalibrationJob& job, PartCalibration& out);
+// Its steps 3 to 5 into `out`, from `theta` (poseKnownPart's, for inputs of
+// the same parameters: a wedge calibration removes the scatter in between).
+void refineKnownPart(const PartCalibrationJob& job, std::vector<double> theta,
+                     PartCalibration& out);
 // The same into `out`, which holds what the steps found so far when it
 // throws (eq. 3.8, the rounds, the last table and fits tried): a failed
 // calibration's diagnostic (report/calibration.h).

@@ -43,7 +43,13 @@
 //   machine            machine file (xray/machine.h)
 //   radiograph         {"image", "dark", "flat" (optional, both or neither),
 //                       "white_region": [x, y, w, h]}
-//   wedge              {"max_thickness_mm": x_max, "ramp_length_mm": H}: the full
+//   wedge              either the wedge's model, fitted as a known part
+//                      (wedge_part.h: steps 2 to 6 replaced, the ramp not used):
+//                      {"model": part model file, "dimensions": {name: caliper
+//                      value} for every dimension of the model, optional
+//                      "dimension_uncertainty_mm" (standard, default 0.01)},
+//                      or the ramp method's
+//                      {"max_thickness_mm": x_max, "ramp_length_mm": H}: the full
 //                      thickness at the thick end and the ramp's length along
 //                      the detector's rows (thick end to thin end); optional
 //                      "max_thickness_uncertainty_mm", "ramp_length_uncertainty_mm"
@@ -61,13 +67,17 @@
 
 #include "xgauge/calibrate/curve.h"
 #include "xgauge/calibrate/halo.h"
+#include "xgauge/calibrate/part.h"
 #include "xgauge/calibrate/ramp.h"
+#include "xgauge/geometry/part_model.h"
 #include "xgauge/image/image.h"
 #include "xgauge/material/exponential_sum.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/xray/machine.h"
 
 #include <filesystem>
+#include <map>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -80,6 +90,13 @@ struct WedgeCalibrationJob {
   std::filesystem::path machine_file;
   Machine machine;  // loaded from machine_file
   RadiographSpec radiograph;
+  // The wedge as a known part (wedge_part.h): its model, with the lab's
+  // caliper values of its dimensions; none: the ramp method below.
+  std::filesystem::path model_file;
+  std::shared_ptr<const PartModel> model;
+  std::map<std::string, double> caliper;  // every dimension of the model
+  double caliper_uncertainty_mm = 0.01;   // of each caliper value
+  // The ramp method: the wedge's thickness and ramp length.
   double max_thickness_mm = 0.0;
   double ramp_length_mm = 0.0;
   double max_thickness_uncertainty_mm = 0.01;
@@ -106,7 +123,7 @@ struct CurveInfluence {
 struct WedgeCalibration {
   RampDetection ramp;
   // Geometry from the ramp's ends.
-  double magnification = 0.0;   // of the back face
+  double magnification = 0.0;   // of the back face (a known part: of its box's centre)
   double back_face_z_mm = 0.0;  // height of the back face above the detector
   double x_max_mm = 0.0;        // path at the thick end
   // The intensity table, thin end first.
@@ -127,6 +144,12 @@ struct WedgeCalibration {
   // The ramp runs along the rows (the wedge turned by 90 or 270 degrees):
   // `ramp`, `rows` and `normalized` are those of the transposed radiograph.
   bool turned = false;
+  // The wedge fitted as a known part (wedge_part.h): its calibration job
+  // (built from this one) and what it found (initial material, rounds,
+  // pose); `path_mm`, `transmission`, `fit` and `material` are its final
+  // table and curve.
+  std::shared_ptr<const PartCalibrationJob> part_job;
+  std::optional<PartCalibration> part;
 };
 
 WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job);

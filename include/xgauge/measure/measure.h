@@ -6,6 +6,7 @@
 #include "xgauge/core/transform.h"
 #include "xgauge/measure/inputs.h"
 #include "xgauge/measure/job.h"
+#include "xgauge/measure/schedule.h"
 #include "xgauge/measure/self_check.h"
 #include "xgauge/measure/tolerance.h"
 #include "xgauge/measure/uncertainty.h"
@@ -85,6 +86,9 @@ struct MeasureOptions {
   // intermediate fits, with a provisional material: their budget would cost
   // re-solves and warn about a misfit the next round removes).
   bool assess = true;
+  // The schedule to follow instead of the job's (a wedge calibration's
+  // search over the in-plane turn and the depth); not owned.
+  const Schedule* schedule = nullptr;
 };
 // The same on a model built by the caller, from `theta` (model.start() for a
 // fresh measurement).

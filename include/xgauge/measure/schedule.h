@@ -57,7 +57,16 @@ struct PoseStage {
 
 struct PoseSchedule {
   // Free and rotated radiographs.
-  PoseStage search;  // global search of (ry, x, y)
+  PoseStage search;  // global search of (r, x, y), r the rotation below
+  // The rotation the global search samples over its whole bounds: 0 rx,
+  // 1 ry (a turntable's axis, default), 2 rz (a part turned in the plane
+  // facing the detector, as a calibration wedge lies).
+  int search_rotation = 1;
+  // When the part's depth (its magnification) is unknown: the global search
+  // runs at this many depths spread evenly in magnification over the z
+  // bounds, each with its own window around the shadow, and the multistart
+  // refines the best distinct samples of all of them; 0: at the start's depth.
+  int search_depths = 0;
   // Start the search at the shadow's centroid seen at the middle depth, and
   // search only a window of `window_of_part_size` x the part's size around it
   // (the rotation over its whole bounds); false: the whole bounds.

@@ -1,0 +1,233 @@
+#include "wedge_part.h"
+
+#include "xgauge/geometry/mesh.h"
+#include "xgauge/measure/inputs.h"
+#include "xgauge/measure/model.h"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <chrono>
+#include <optional>
+#include <cmath>
+#include <span>
+
+namespace xgauge {
+
+namespace {
+
+constexpr double kMinMagnification = 1.05;
+
+// The pose search of a wedge of unknown turn and depth (wedge_part.h, step
+// 2): the default schedule's pose stages with the search over rz at 13
+// depths (magnifications about 15 % apart) on the level about 128 px wide
+// (600 samples each: about 15 degrees and a tenth of the window apart), 6 of
+// its best distinct samples refined until converged (a start's depth may be
+// 8 % off).
+// The joint and least-squares stages are the default's.
+Schedule wedgeSchedule() {
+  Schedule s = scheduleFor(ScheduleKind::kDefault);
+  PoseSchedule& p = s.pose;
+  p.search = {Method::kUniformSampling, 128, 0, 600, {}};
+  p.search_rotation = 2;
+  p.search_depths = 21;
+  p.search_around_shadow = true;
+  // A partly seen wedge's shadow centroid lies up to about a third of its
+  // size from the projection of its centre.
+  p.window_of_part_size = 0.35;
+  p.multistart = 10;
+  p.separation = 0.03;
+  p.local = {Method::kBobyqa, 256, 500, 0, {1.0, 1.0, 10.0, 5.0, 5.0, 30.0}};
+  p.finer = {{Method::kBobyqa, 512, 500, 0, {0.5, 0.5, 1.0, 1.0, 1.0, 10.0}}};
+  return s;
+}
+
+// The loaded inputs of the known-part fit: the wedge's model at the caliper
+// values (every dimension fixed), `image` (normalized, the scatter removed:
+// the model adds none) and pose bounds that cover every sensible set-up.
+MeasurementInputs knownWedgeInputs(const WedgeCalibrationJob& job, const Image& image,
+                                   const std::map<std::string, double>& caliper) {
+  MeasurementInputs in;
+  MeasurementJob& m = in.job;
+  m.file = job.file;
+  m.description = job.description;
+  m.part_file = job.model_file;
+  m.machine_file = job.machine_file;
+  m.fixed_dimensions = caliper;
+  RadiographSpec spec = job.radiograph;
+  spec.dark.clear(), spec.flat.clear();  // `image` is normalized already
+  m.radiographs = {spec};
+  const Machine& machine = job.machine;
+  const double d = machine.source_detector_distance_mm;
+  const double width_mm =
+      std::max(machine.columns * machine.pitch_u_mm, machine.rows * machine.pitch_v_mm);
+  const double max_magnification = std::max(2.0 * kMinMagnification, width_mm / kMinVisibleMm);
+  const double size = boundingBox(job.model->mesh(job.model->values(caliper))).diagonal();
+  m.rotation_bounds_deg = {{{-kMaxTiltDeg, kMaxTiltDeg}, {-kMaxTiltDeg, kMaxTiltDeg}, {-180.0, 180.0}}};
+  // World x along the columns, y against the rows, 0 on the principal point.
+  m.centre_bounds_mm = {{{-machine.cx_px * machine.pitch_u_mm - size,
+                          (machine.columns - machine.cx_px) * machine.pitch_u_mm + size},
+                         {-(machine.rows - machine.cy_px) * machine.pitch_v_mm - size,
+                          machine.cy_px * machine.pitch_v_mm + size},
+                         {d * (1.0 - 1.0 / kMinMagnification), d * (1.0 - 1.0 / max_magnification)}}};
+  in.part = job.model;
+  in.machine = machine;
+  in.radiographs = {
+      std::make_shared<const PreparedRadiograph>(prepareRadiograph(image, {}, spec, machine))};
+  return in;
+}
+
+// The wedge's smallest extent at its caliper values: its thickness.
+double smallestExtent(const PartModel& model, const std::map<std::string, double>& caliper) {
+  const BoundingBox box = boundingBox(model.mesh(model.values(caliper)));
+  const Vec3 extent = box.max_mm - box.min_mm;
+  return extent.minCoeff();
+}
+
+}  // namespace
+
+void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized,
+                         const Image& image, std::optional<HaloFit> box_halo,
+                         WedgeCalibration& out) {
+  const std::string name = job.radiograph.image.string();
+  const Machine& machine = job.machine;
+  out.step = "the wedge's model in the radiograph";
+  auto part_job = std::make_shared<PartCalibrationJob>();
+  part_job->inputs =
+      std::make_shared<const MeasurementInputs>(knownWedgeInputs(job, image, job.caliper));
+  part_job->terms = job.max_terms;
+  part_job->initial_radiograph = 0;
+  part_job->initial_path_mm = smallestExtent(*job.model, job.caliper);
+  part_job->rate_floor = job.rate_floor;
+  part_job->pose_schedule = wedgeSchedule();
+  out.part_job = part_job;
+  out.part.emplace();
+  PartCalibration& part = *out.part;
+  const auto start = std::chrono::steady_clock::now();
+  try {
+    std::vector<double> theta = poseKnownPart(*part_job, part);
+    if (job.estimate_scatter) {
+      // The scatter from the open beam the posed wedge leaves (halo.h),
+      // then the rounds on the radiograph without it; where that does not
+      // decide, the one around the box of the radiograph's sharp edges.
+      part.step = "the scatter around the posed wedge";
+      const PreparedRadiograph& prepared = *part_job->inputs->radiographs.front();
+      const HaloOptions options;
+      size_t level = 0;
+      while (level + 1 < prepared.levels.size() &&
+             std::max(prepared.levels[level].width(), prepared.levels[level].height()) >
+                 options.max_side)
+        ++level;
+      ForwardModel model(*part_job->inputs, ExponentialSum({{1.0, part.initial_mu_per_mm}}));
+      const Image path =
+          model.pathLengths(theta, 0, static_cast<int>(level), prepared.levels[level].rect());
+      std::optional<HaloFit> halo;
+      try {
+        halo = fitScatterWithPaths(normalized, path, machine.pitch_u_mm, name, options);
+        spdlog::info(
+            "{}: scatter around the posed wedge: weight {:.4f} +- {:.4f}, sigma {:.1f} +- {:.1f} "
+            "mm; column darkening {:.4f} per unit attenuation{}",
+            name, halo->scatter.weight, halo->scatter.weight_uncertainty, halo->scatter.sigma_mm,
+            halo->scatter.sigma_uncertainty_mm, halo->column_darkening,
+            box_halo
+                ? fmt::format(" (around the box of its edges: weight {:.4f}, sigma {:.1f} mm)",
+                              box_halo->scatter.weight, box_halo->scatter.sigma_mm)
+                : std::string());
+      } catch (const Error& e) {
+        if (!box_halo) throw;
+        spdlog::warn(
+            "{}: the open beam around the posed wedge does not decide the scatter ({}); the one "
+            "around the box of the radiograph's sharp edges is taken: weight {:.4f}, sigma "
+            "{:.1f} mm",
+            name, e.message(), box_halo->scatter.weight, box_halo->scatter.sigma_mm);
+        halo = std::move(box_halo);
+      }
+      part_job->inputs = std::make_shared<const MeasurementInputs>(
+          knownWedgeInputs(job, halo->primary, job.caliper));
+      out.normalized = std::move(halo->primary);
+      halo->primary = Image();
+      out.scatter = halo->scatter;
+      out.halo = std::move(halo);
+    }
+    refineKnownPart(*part_job, std::move(theta), part);
+  } catch (const Error&) {
+    out.step = "the wedge as a known part: " + part.step;
+    out.path_mm = part.path_mm, out.transmission = part.transmission, out.fit = part.fit;
+    throw;
+  }
+  part.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  out.path_mm = part.path_mm, out.transmission = part.transmission, out.fit = part.fit;
+  out.material = part.material;
+  out.x_max_mm = part.max_path_mm;
+  const Pose pose = part.measurement.radiographs.front().pose;
+  const Vec3 angles = pose.eulerDeg();
+  const double d = machine.source_detector_distance_mm;
+  const BoundingBox box = boundingBox(job.model->mesh(job.model->values(job.caliper)));
+  out.magnification = d / (d - pose.apply(0.5 * (box.min_mm + box.max_mm)).z());
+  spdlog::info(
+      "{}: the wedge's pose: rotation ({:.2f}, {:.2f}, {:.2f}) deg, centre at magnification "
+      "{:.3f}; {} rounds, final table of {} path bins up to {:.2f} mm",
+      name, angles.x(), angles.y(), angles.z(), out.magnification, part.rounds.size(),
+      out.path_mm.size(), out.x_max_mm);
+  std::vector<double> theta = part.measurement.theta;
+  theta.resize(static_cast<size_t>(ForwardModel(*part_job->inputs, out.material).size()));
+  out.table_uncertainty = out.fit.tableUncertainty();
+
+  // 7. The curve's uncertainty: the table read again at the fitted pose with
+  // each influence moved by its standard uncertainty.
+  out.step = "the curve's uncertainty";
+  const int terms = out.fit.best().terms;
+  auto propagate = [&](const std::string& influence, double value, double u,
+                       const MeasurementInputs& moved, const std::vector<double>& at) {
+    if (!(u > 0.0)) return;
+    try {
+      ForwardModel model(moved, out.material);
+      const RegisteredTable table = registeredTable(model, at);
+      const CurveOptions options{
+          .max_terms = terms,
+          .noise = table.noise,
+          .rate_floor_per_mm = job.rate_floor ? job.rate_floor->per_mm : 0.0};
+      const CurveFit fit = fitCurve(table.path_mm, table.transmission, options, name);
+      out.influences.push_back(
+          {influence, value, u,
+           largestDifference(out.material, ExponentialSum(fit.best().fitted), out.x_max_mm)});
+    } catch (const Error& e) {
+      fail("the calibration does not survive its {} moved by its standard uncertainty ({}): {}",
+           influence, u, e.message());
+    }
+  };
+  const ScatterModel& scatter = out.scatter;
+  if (scatter.enabled()) {
+    auto without = [&](double weight, double sigma_mm) {
+      if (out.halo) return out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
+      ScatterModel moved = scatter;
+      moved.weight = weight, moved.sigma_mm = sigma_mm;
+      return moved.remove(normalized, machine.pitch_u_mm, job.radiograph.white_region);
+    };
+    propagate("scatter weight", scatter.weight, scatter.weight_uncertainty,
+              knownWedgeInputs(
+                  job, without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),
+                  job.caliper),
+              theta);
+    propagate("scatter sigma_mm", scatter.sigma_mm, scatter.sigma_uncertainty_mm,
+              knownWedgeInputs(
+                  job, without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
+                  job.caliper),
+              theta);
+  }
+  // A dimension's value is in theta (the model's first entries, fixed or
+  // free): moved up, or down where up breaks its bounds or a constraint.
+  for (const auto& [dimension, value] : job.caliper) {
+    std::vector<double> moved = theta;
+    const auto i = static_cast<size_t>(job.model->dimensionIndex(dimension));
+    moved[i] = value + job.caliper_uncertainty_mm;
+    if (job.model->invalidity(std::span(moved).first(job.model->dimensions().size())))
+      moved[i] = value - job.caliper_uncertainty_mm;
+    propagate("wedge " + dimension, value, job.caliper_uncertainty_mm, *part_job->inputs, moved);
+  }
+  combineCurveUncertainty(name, out);
+  out.material.setCalibratedRange(std::array<double, 2>{out.path_mm.front(), out.x_max_mm});
+  part.material = out.material;  // what the outputs write
+}
+
+}  // namespace xgauge

@@ -1,0 +1,54 @@
+// The wedge calibration with the wedge fitted as a known part (private to
+// calibrate/): the wedge's model, at the lab's caliper values, is posed in
+// the radiograph by the measurement's own pose search, and the path of every
+// pixel comes from the renderer rather than from rows and a straight ramp.
+// This is the part calibration (part.h) on the one shot, so that a turned,
+// tilted or partly seen wedge, or one a few tenths off its nominal
+// dimensions, is read as it lies:
+//
+//   1. The initial material: thesis eq. 3.8 with I1 the darkest 2 % of the
+//      shadow and x1 the wedge's smallest extent at its caliper values (its
+//      thickness: a calibration wedge is shot through it).
+//   2. The pose: nothing about it is given. The global search samples the
+//      turn in the detector's plane over a whole turn with the position
+//      around the shadow's centroid, at depths spread evenly in magnification
+//      from 1.05 to the detector's width over 30 mm (kMinVisibleMm of the
+//      wedge across the detector); the best distinct samples are refined in
+//      6 DOF and the best of those coarse to fine. Tilts are bounded by
+//      kMaxTiltDeg.
+//   3. The rounds of the part calibration: the table of the pixels whose path
+//      is smooth, its curve, then poses and material together, until the
+//      material settles; the final curve from the final table.
+//   4. The curve's uncertainty: the table's own, combined with the curve's
+//      change when the scatter's weight and width and each caliper value move
+//      by their standard uncertainties (the table read again at the fitted
+//      pose: the pose is fitted to the outline, which these barely move).
+#pragma once
+
+#include "xgauge/calibrate/wedge.h"
+
+#include <optional>
+#include <string>
+
+namespace xgauge {
+
+inline constexpr double kMaxTiltDeg = 6.0;
+inline constexpr double kMinVisibleMm = 30.0;
+
+// Steps 2 to 7 of calibrateFromWedge for a job with a model: `normalized`
+// the radiograph as normalized, `image` with the job's scatter removed (the
+// same as `normalized` when the scatter is estimated), `box_halo` the halo
+// around the box of the radiograph's sharp edges when it decided (the
+// fallback of the one around the posed wedge). Fills `out` as far as it
+// gets.
+void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized,
+                         const Image& image, std::optional<HaloFit> box_halo,
+                         WedgeCalibration& out);
+
+// Step 7's end, shared by both methods: the curve's standard uncertainty,
+// the table's combined with every influence's change, set on out.material;
+// a warning naming the largest part when it exceeds kLargeCurveUncertainty.
+inline constexpr double kLargeCurveUncertainty = 0.005;
+void combineCurveUncertainty(const std::string& name, WedgeCalibration& out);
+
+}  // namespace xgauge

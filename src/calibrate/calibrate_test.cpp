@@ -406,6 +406,57 @@ TEST_F(Calibrate, AWedgeFittedAsAKnownPartGivesBackItsMaterial) {
   }
 }
 
+// A wedge job with a model: every caliper value is given, by name, within
+// the model's bounds, and the ramp method's keys are refused.
+TEST_F(Calibrate, AWedgeModelsCaliperValuesAreCheckedByName) {
+  std::ofstream(dir_ / "machine.json") << wedgeMachine().toJson().dump();
+  const std::string model = kRoot + "/parts/wedge_block.json";
+  nlohmann::json dims = {{"thickness", 20.0},        {"thin_end", 0.2},
+                         {"pocket_left_top", 29.58}, {"pocket_right_top", 29.66},
+                         {"wall_left_top", 8.8},     {"wall_right_top", 8.4},
+                         {"wall_left_mid", 9.2},     {"wall_right_mid", 8.1},
+                         {"pocket_left_mid", 29.7},  {"pocket_right_mid", 29.65}};
+  auto write = [&](const nlohmann::json& wedge, const nlohmann::json& extra) {
+    nlohmann::json job = {{"machine", "machine.json"},
+                          {"radiograph", {{"image", "wedge.tif"}, {"white_region", {8, 8, 40, 40}}}},
+                          {"wedge", wedge}};
+    if (extra.is_object()) job.update(extra);
+    std::ofstream(dir_ / "job.json") << job.dump();
+    return dir_ / "job.json";
+  };
+  const auto good = WedgeCalibrationJob::load(write({{"model", model}, {"dimensions", dims}}, {}));
+  ASSERT_TRUE(good.model);
+  EXPECT_EQ(good.caliper.size(), 10u);
+  EXPECT_DOUBLE_EQ(good.caliper_uncertainty_mm, 0.01);
+  nlohmann::json missing = dims;
+  missing.erase("thin_end");
+  expectErrorMentioning(
+      [&] { WedgeCalibrationJob::load(write({{"model", model}, {"dimensions", missing}}, {})); },
+      "'thin_end' is missing");
+  nlohmann::json unknown = dims;
+  unknown["thikness"] = 20.0;
+  expectErrorMentioning(
+      [&] { WedgeCalibrationJob::load(write({{"model", model}, {"dimensions", unknown}}, {})); },
+      "thikness");
+  nlohmann::json outside = dims;
+  outside["thickness"] = 40.0;
+  expectErrorMentioning(
+      [&] { WedgeCalibrationJob::load(write({{"model", model}, {"dimensions", outside}}, {})); },
+      "thickness");
+  expectErrorMentioning(
+      [&] {
+        WedgeCalibrationJob::load(
+            write({{"model", model}, {"dimensions", dims}, {"ramp_length_mm", 90.0}}, {}));
+      },
+      "the wedge's model gives its dimensions");
+  expectErrorMentioning(
+      [&] {
+        WedgeCalibrationJob::load(write({{"model", model}, {"dimensions", dims}},
+                                        {{"ramp", {{"rows", {10, 400}}}}}));
+      },
+      "no ramp to give");
+}
+
 TEST_F(Calibrate, KnownCuboidGivesBackTheMaterialItWasRenderedWith) {
   Machine machine;
   machine.source_detector_distance_mm = 1000.0;

@@ -8,8 +8,8 @@
 
 #include <algorithm>
 #include <chrono>
-#include <optional>
 #include <cmath>
+#include <optional>
 #include <span>
 
 namespace xgauge {
@@ -63,13 +63,15 @@ MeasurementInputs knownWedgeInputs(const WedgeCalibrationJob& job, const Image& 
       std::max(machine.columns * machine.pitch_u_mm, machine.rows * machine.pitch_v_mm);
   const double max_magnification = std::max(2.0 * kMinMagnification, width_mm / kMinVisibleMm);
   const double size = boundingBox(job.model->mesh(job.model->values(caliper))).diagonal();
-  m.rotation_bounds_deg = {{{-kMaxTiltDeg, kMaxTiltDeg}, {-kMaxTiltDeg, kMaxTiltDeg}, {-180.0, 180.0}}};
+  m.rotation_bounds_deg = {
+      {{-kMaxTiltDeg, kMaxTiltDeg}, {-kMaxTiltDeg, kMaxTiltDeg}, {-180.0, 180.0}}};
   // World x along the columns, y against the rows, 0 on the principal point.
-  m.centre_bounds_mm = {{{-machine.cx_px * machine.pitch_u_mm - size,
-                          (machine.columns - machine.cx_px) * machine.pitch_u_mm + size},
-                         {-(machine.rows - machine.cy_px) * machine.pitch_v_mm - size,
-                          machine.cy_px * machine.pitch_v_mm + size},
-                         {d * (1.0 - 1.0 / kMinMagnification), d * (1.0 - 1.0 / max_magnification)}}};
+  m.centre_bounds_mm = {
+      {{-machine.cx_px * machine.pitch_u_mm - size,
+        (machine.columns - machine.cx_px) * machine.pitch_u_mm + size},
+       {-(machine.rows - machine.cy_px) * machine.pitch_v_mm - size,
+        machine.cy_px * machine.pitch_v_mm + size},
+       {d * (1.0 - 1.0 / kMinMagnification), d * (1.0 - 1.0 / max_magnification)}}};
   in.part = job.model;
   in.machine = machine;
   in.radiographs = {
@@ -129,10 +131,9 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
             "mm; column darkening {:.4f} per unit attenuation{}",
             name, halo->scatter.weight, halo->scatter.weight_uncertainty, halo->scatter.sigma_mm,
             halo->scatter.sigma_uncertainty_mm, halo->column_darkening,
-            box_halo
-                ? fmt::format(" (around the box of its edges: weight {:.4f}, sigma {:.1f} mm)",
-                              box_halo->scatter.weight, box_halo->scatter.sigma_mm)
-                : std::string());
+            box_halo ? fmt::format(" (around the box of its edges: weight {:.4f}, sigma {:.1f} mm)",
+                                   box_halo->scatter.weight, box_halo->scatter.sigma_mm)
+                     : std::string());
       } catch (const Error& e) {
         if (!box_halo) throw;
         spdlog::warn(

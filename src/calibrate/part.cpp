@@ -255,6 +255,7 @@ void refineKnownPart(const PartCalibrationJob& job, std::vector<double> theta,
     options.search_poses = false;
     options.joint_search = false;
     options.assess = false;
+    if (job.pose_schedule) options.schedule = &*job.pose_schedule;
     out.step = fmt::format("round {}: the joint fit of poses and material", round + 1);
     out.measurement = measure(model, theta, options);
     theta = out.measurement.theta;

@@ -19,12 +19,11 @@ namespace {
 constexpr double kMinMagnification = 1.05;
 
 // The pose search of a wedge of unknown turn and depth (wedge_part.h, step
-// 2): the default schedule's pose stages with the search over rz at 13
-// depths (magnifications about 15 % apart) on the level about 128 px wide
-// (600 samples each: about 15 degrees and a tenth of the window apart), 6 of
-// its best distinct samples refined until converged (a start's depth may be
-// 8 % off).
-// The joint and least-squares stages are the default's.
+// 2): the default schedule's pose stages with the search over rz at 21
+// depths (magnifications about 8 % apart) on the level about 128 px wide
+// (600 samples each: about 15 degrees and a tenth of the window apart), 10
+// of its best distinct samples refined until converged (a start's depth may
+// be 4 % off).
 Schedule wedgeSchedule() {
   Schedule s = scheduleFor(ScheduleKind::kDefault);
   PoseSchedule& p = s.pose;
@@ -39,6 +38,12 @@ Schedule wedgeSchedule() {
   p.separation = 0.03;
   p.local = {Method::kBobyqa, 256, 500, 0, {1.0, 1.0, 10.0, 5.0, 5.0, 30.0}};
   p.finer = {{Method::kBobyqa, 512, 500, 0, {0.5, 0.5, 1.0, 1.0, 1.0, 10.0}}};
+  // The joint stages (the pose, and with it the free curve of step 3) and
+  // the rounds' least squares up to the level about 1024 px wide: a pose to
+  // a tenth of those pixels, and a 4096^2 shot calibrates in minutes, not
+  // tens of minutes.
+  s.joint = {{Method::kBobyqa, 512, 2, 1200, 1.0, 10.0}, {Method::kBobyqa, 1024, 2, 400, 0.3, 10.0}};
+  s.least_squares = {true, 1024, 2, 30};
   return s;
 }
 

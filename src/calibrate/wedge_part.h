@@ -8,18 +8,23 @@
 //
 //   1. The initial material: thesis eq. 3.8 with I1 the darkest 2 % of the
 //      shadow and x1 the wedge's smallest extent at its caliper values (its
-//      thickness: a calibration wedge is shot through it).
+//      thickness: a calibration wedge is shot through it), bent as beam
+//      hardening bends a curve (part.h) for the pose search.
 //   2. The pose: nothing about it is given. The global search samples the
 //      turn in the detector's plane over a whole turn with the position
 //      around the shadow's centroid, at depths spread evenly in magnification
 //      from 1.05 to the detector's width over 30 mm (kMinVisibleMm of the
 //      wedge across the detector); the best distinct samples are refined in
 //      6 DOF and the best of those coarse to fine. Tilts are bounded by
-//      kMaxTiltDeg.
-//   3. The rounds of the part calibration: the table of the pixels whose path
-//      is smooth, its curve, then poses and material together, until the
-//      material settles; the final curve from the final table.
-//   4. The curve's uncertainty: the table's own, combined with the curve's
+//      kMaxTiltDeg. Then the pose again with the curve free.
+//   3. The scatter, when the job gives none: the halo fit (halo.h) on the
+//      open beam the posed wedge leaves; where that does not decide, the
+//      halo around the box of the radiograph's sharp edges if it did.
+//   4. The rounds of the part calibration on the radiograph without the
+//      scatter: the table of the pixels whose path is smooth, its curve,
+//      then the pose and the curve together, until the curve settles; the
+//      final curve from the final table.
+//   5. The curve's uncertainty: the table's own, combined with the curve's
 //      change when the scatter's weight and width and each caliper value move
 //      by their standard uncertainties (the table read again at the fitted
 //      pose: the pose is fitted to the outline, which these barely move).
@@ -32,6 +37,7 @@
 
 namespace xgauge {
 
+// A wedge lies on a holder: tilted by a few degrees at most.
 inline constexpr double kMaxTiltDeg = 6.0;
 inline constexpr double kMinVisibleMm = 30.0;
 

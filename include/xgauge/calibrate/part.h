@@ -77,8 +77,9 @@ struct PartCalibrationJob {
   std::optional<PixelRect> initial_region;
   double initial_path_mm = 0.0;
   std::optional<RateFloor> rate_floor;
-  // The pose search to follow instead of the job's schedule's (a wedge
-  // calibration's search over the turn in plane and the depth).
+  // The schedule to follow instead of the job's, in the pose search and the
+  // rounds' least squares (a wedge calibration's search over the turn in
+  // plane and the depth).
   std::optional<Schedule> pose_schedule;
 
   static PartCalibrationJob load(const std::filesystem::path& path);

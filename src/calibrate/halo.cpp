@@ -283,6 +283,17 @@ void searchWidth(const FitAt& fitAt, size_t count, const Image& normalized, doub
       solvePrimary(normalized, columnAttenuation(normalized), best.k, sigma_mm / pitch_mm);
 }
 
+// The fit over the open beam `open` (pixels of `n`, the radiograph binned
+// by out.binning): its checks, then the width's search.
+void fitOpenBeam(const Image& n, const std::vector<int>& open, const Image& normalized,
+                 double pitch_mm, const std::string& name, const HaloOptions& options,
+                 HaloFit& out) {
+  checkOpenBeam(n, open, name, options, out);
+  const std::vector<double> attenuation = columnAttenuation(n);
+  searchWidth([&](double sigma) { return fitAtWidth(n, attenuation, open, sigma); }, open.size(),
+              normalized, pitch_mm, name, options, out);
+}
+
 }  // namespace
 
 Image HaloFit::primaryWith(const Image& normalized, double pitch_mm, double weight,
@@ -312,16 +323,9 @@ HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::stri
       const bool inside = x >= box.x && x < box.right() && y >= box.y && y < box.bottom();
       if (!inside && n(x, y) > 0.5f && n(x, y) < 1.5f) open.push_back(y * n.width() + x);
     }
-  checkOpenBeam(n, open, name, options, out);
-  const std::vector<double> attenuation = columnAttenuation(n);
-  searchWidth([&](double sigma) { return fitAtWidth(n, attenuation, open, sigma); }, open.size(),
-              normalized, pitch_mm, name, options, out);
+  fitOpenBeam(n, open, normalized, pitch_mm, name, options, out);
   return out;
 }
-
-}  // namespace xgauge
-
-namespace xgauge {
 
 HaloFit fitScatterWithPaths(const Image& normalized, const Image& path_mm, double pitch_mm,
                             const std::string& name, const HaloOptions& options) {
@@ -352,10 +356,7 @@ HaloFit fitScatterWithPaths(const Image& normalized, const Image& path_mm, doubl
   if (x1 <= x0) fail("{}: the part's model casts no shadow in the radiograph", name);
   out.shadow = {x0 * out.binning, y0 * out.binning, (x1 - x0) * out.binning,
                 (y1 - y0) * out.binning};
-  checkOpenBeam(n, open, name, options, out);
-  const std::vector<double> attenuation = columnAttenuation(n);
-  searchWidth([&](double sigma) { return fitAtWidth(n, attenuation, open, sigma); }, open.size(),
-              normalized, pitch_mm, name, options, out);
+  fitOpenBeam(n, open, normalized, pitch_mm, name, options, out);
   return out;
 }
 

@@ -162,6 +162,12 @@ void checkOpenBeam(const Image& n, const std::vector<int>& open, const std::stri
   }
 }
 
+// A primary below -kNegativePrimary on more than kMaxNegativeFraction of
+// the radiograph: the scatter removed is not the shot's (noise alone leaves
+// a few pixels of the darkest paths below zero).
+constexpr float kNegativePrimary = 0.01f;
+constexpr double kMaxNegativeFraction = 0.001;
+
 // The width's search and what follows from its best fit, shared by both
 // estimates: `fitAt(sigma_px)` fits (a, b, c) at one width (binned pixels)
 // over `count` pixels; `out` has its binning and shadow set.
@@ -281,6 +287,17 @@ void searchWidth(const FitAt& fitAt, size_t count, const Image& normalized, doub
   out.rms = best.rms;
   out.primary =
       solvePrimary(normalized, columnAttenuation(normalized), best.k, sigma_mm / pitch_mm);
+  // A scatter removed that was not there leaves the darkest paths below
+  // zero: the open beam's halo was something else.
+  int64_t negative = 0;
+  for (const float p : out.primary.pixels()) negative += p < -kNegativePrimary;
+  const double fraction = static_cast<double>(negative) / static_cast<double>(out.primary.size());
+  if (fraction > kMaxNegativeFraction)
+    fail(
+        "{}: the scatter fitted to the open beam (weight {:.4f}, sigma {:.3g} mm) leaves {:.2f} % "
+        "of the radiograph below zero once removed: it is not the scatter of this shot; give the "
+        "job's \"scatter\"",
+        name, weight, sigma_mm, 100.0 * fraction);
 }
 
 // The fit over the open beam `open` (pixels of `n`, the radiograph binned

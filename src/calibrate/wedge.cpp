@@ -148,7 +148,11 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
         wedge.at(key).fail("the wedge's model gives its dimensions: leave this key out");
     if (root.has("ramp")) root.at("ramp").fail("a wedge fitted as a known part has no ramp to give");
     job.model_file = folder / model->string();
-    job.model = std::make_shared<const PartModel>(PartModel::load(job.model_file));
+    try {
+      job.model = std::make_shared<const PartModel>(PartModel::load(job.model_file));
+    } catch (const Error& e) {
+      model->fail(e.message());  // names the job's key as well as the model's file
+    }
     const ConfigNode dims = wedge.at("dimensions");
     for (const std::string& name : dims.keys()) {
       try {

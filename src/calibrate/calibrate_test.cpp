@@ -595,12 +595,69 @@ TEST(ScatterHalo, WeightAndWidthComeBackOverARangeOfSetups) {
   }
 }
 
-TEST(ScatterHalo, ADetectorWithoutScatterGetsNone) {
+TEST(ScatterHalo, ADetectorWithoutScatterGetsNoneWithItsBound) {
   setProgressEnabled(false);
   const Image image = wedgeShot({512, 0.4, 2.0, 0.0, 0.0, 0.0, 250.0, 0.0}, 3);
-  const HaloFit fit = fitScatterHalo(image, 0.4, "shot.tif");
+  // A halo much wider than the open beam is a near-uniform level there, so
+  // over the whole search (to 1.5 times the detector's side) the open beam
+  // cannot tell "none" from a wide halo, and says so.
+  expectErrorMentioning([&] { fitScatterHalo(image, 0.4, "shot.tif"); }, "does not decide");
+  // Searched to half the side, it bounds the weight: none, with that bound
+  // as its uncertainty.
+  HaloOptions narrower;
+  narrower.max_sigma_fraction = 0.5;
+  const HaloFit fit = fitScatterHalo(image, 0.4, "shot.tif", narrower);
   EXPECT_FALSE(fit.scatter.enabled());
+  EXPECT_GT(fit.scatter.weight_uncertainty, 0.0);
+  EXPECT_LT(fit.scatter.weight_uncertainty, 0.025);
+  EXPECT_GT(fit.scatter.sigma_mm, 0.0);
   EXPECT_NEAR(fit.column_darkening, 0.0, 0.005);
+}
+
+// A corner of a part seen with an open strip beside it, its path known (a
+// posed known part): primary 1 in the strip, a dark ramp elsewhere, the
+// halo's sigma in pixels, noise 0.003, normalized by the strip's corner.
+struct CornerShot {
+  Image normalized, path_mm;
+};
+CornerShot cornerShot(int side, double weight, double sigma_px, uint64_t seed) {
+  CornerShot out{Image(side, side, 1.0f), Image(side, side, 0.0f)};
+  for (int y = side / 4; y < side; ++y)
+    for (int x = 0; x < side; ++x) {
+      out.normalized(x, y) = static_cast<float>(0.3 + 0.4 * x / side);
+      out.path_mm(x, y) = 10.0f;
+    }
+  out.normalized = scatterBlur(std::move(out.normalized), weight, sigma_px);
+  const double open = static_cast<double>(out.normalized(2, 2));
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, 0.003);
+  for (float& p : out.normalized.pixels())
+    p = static_cast<float>(static_cast<double>(p) / open + noise(rng));
+  return out;
+}
+
+// A halo wider than the detector beside a part that fills three quarters of
+// it: the open strip cannot tell the halo from the open level. It is refused
+// as undecided, or the weight it states covers the truth at two standard
+// uncertainties; never "no scatter" with a small uncertainty. A narrower
+// halo on the same shot is found.
+TEST(ScatterHalo, AHaloWiderThanTheOpenBeamIsNotTakenForNone) {
+  setProgressEnabled(false);
+  for (const double weight : {0.14, 0.08}) {
+    SCOPED_TRACE(::testing::Message() << "weight " << weight);
+    const CornerShot shot = cornerShot(256, weight, 300.0, 5);
+    try {
+      const HaloFit fit = fitScatterWithPaths(shot.normalized, shot.path_mm, 0.2, "shot.tif");
+      EXPECT_LE(std::abs(fit.scatter.weight - weight), 2.0 * fit.scatter.weight_uncertainty)
+          << "weight " << fit.scatter.weight << " +- " << fit.scatter.weight_uncertainty;
+    } catch (const Error& e) {
+      EXPECT_NE(std::string(e.what()).find("does not decide"), std::string::npos) << e.what();
+    }
+  }
+  const CornerShot narrow = cornerShot(256, 0.1, 40.0, 6);
+  const HaloFit fit = fitScatterWithPaths(narrow.normalized, narrow.path_mm, 0.2, "shot.tif");
+  EXPECT_NEAR(fit.scatter.weight, 0.1, 0.015);
+  EXPECT_NEAR(fit.scatter.sigma_mm, 8.0, 2.0);
 }
 
 TEST(ScatterHalo, SaysSoWhenTheRadiographCannotDecide) {

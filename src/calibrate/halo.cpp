@@ -168,6 +168,13 @@ void checkOpenBeam(const Image& n, const std::vector<int>& open, const std::stri
 constexpr float kNegativePrimary = 0.01f;
 constexpr double kMaxNegativeFraction = 0.001;
 
+// The halo's width profile (searchWidth): a rise of the open beam's residual
+// sum of squares by this many rms^2 is about two standard deviations in one
+// parameter; a scatter whose weight the open beam cannot bound below
+// kMaxUnseenWeight is not "none" but undecided.
+constexpr double kProfileRise = 4.0;
+constexpr double kMaxUnseenWeight = 0.05;
+
 // The width's search and what follows from its best fit, shared by both
 // estimates: `fitAt(sigma_px)` fits (a, b, c) at one width (binned pixels)
 // over `count` pixels; `out` has its binning and shadow set.
@@ -186,6 +193,8 @@ void searchWidth(const FitAt& fitAt, size_t count, const Image& normalized, doub
     grid.push_back(fitAt(sigma));
     out.sigma_mm.push_back(sigma * binned_pitch);
     out.residual_rms.push_back(grid.back().rms);
+    spdlog::debug("{}: halo at sigma {:.3g} mm: rms {:.6g}, weight {:.4f}", name,
+                  sigma * binned_pitch, grid.back().rms, weightOf(grid.back().k));
   }
   const auto best_at = static_cast<int>(
       std::min_element(grid.begin(), grid.end(),
@@ -213,20 +222,56 @@ void searchWidth(const FitAt& fitAt, size_t count, const Image& normalized, doub
     const Eigen::Vector2d gradient(-fit.k.b / (s * s), fit.k.a / (s * s));
     return std::sqrt(std::max(0.0, gradient.dot(fit.covariance.topLeftCorner<2, 2>() * gradient)));
   };
+  auto sum = [&](const WidthFit& fit) { return fit.rms * fit.rms * static_cast<double>(count); };
+  // The weights the open beam allows: at every width of the grid whose
+  // residual sum of squares is within kProfileRise rms^2 of the best (as
+  // well explained, to about two standard deviations in one parameter),
+  // the weight give or take two of its standard uncertainties. A halo much
+  // wider than the open beam is a near-uniform level over it, which trades
+  // with the open level: a wide halo of any weight may then fit as well as
+  // none, and the range says so.
+  struct Allowed {
+    double low = HUGE_VAL, high = -HUGE_VAL, sigma_at_high_px = 0.0;
+  };
+  auto allowedWeights = [&](const WidthFit& best_fit) {
+    Allowed allowed;
+    const double limit = sum(best_fit) + kProfileRise * best_fit.rms * best_fit.rms;
+    for (const WidthFit& fit : grid) {
+      if (!(sum(fit) <= limit)) continue;
+      const double w = weightOf(fit.k), u = weightUncertainty(fit);
+      allowed.low = std::min(allowed.low, w - 2.0 * u);
+      if (w + 2.0 * u > allowed.high) allowed.high = w + 2.0 * u, allowed.sigma_at_high_px = fit.sigma_px;
+    }
+    return allowed;
+  };
   // No halo worth the name: a detector without scatter (or too little to
   // see), whose width is then arbitrary and does not matter; or a blur no
   // wider than the narrowest width searched, which is the detector's
-  // unsharpness rather than a halo.
+  // unsharpness rather than a halo. Said only when no width that explains
+  // the open beam as well allows a weight above kMaxUnseenWeight; the
+  // largest it allows is then the weight's uncertainty (at two standard
+  // uncertainties) at the width that allows it, so that a curve fitted
+  // without the scatter carries its influence.
   if (best_at == 0 || weightOf(best.k) < std::max(0.003, 3.0 * weightUncertainty(best))) {
+    const Allowed allowed = allowedWeights(best);
+    if (!(allowed.high <= kMaxUnseenWeight))
+      fail(
+          "{}: the scatter's halo does not decide the scatter: no halo fits the open beam around "
+          "the part, and so does a halo of weight up to {:.3f} at sigma {:.3g} mm (the open beam "
+          "is too small or too far from the part to tell a halo that wide from the open level): "
+          "give the job's \"scatter\"",
+          name, allowed.high, allowed.sigma_at_high_px * binned_pitch);
     spdlog::warn(
-        "{}: no measurable scatter halo (weight {:.4f} +- {:.4f} at sigma {:.3g} mm, the search "
-        "from {:.3g} mm): scatter left out",
+        "{}: no measurable scatter halo (weight {:.4f} +- {:.4f} at sigma {:.3g} mm, at most "
+        "{:.4f} at any width from {:.3g} mm that fits as well): scatter left out, its "
+        "uncertainty {:.4f}",
         name, weightOf(best.k), weightUncertainty(best), best.sigma_px * binned_pitch,
-        low * binned_pitch);
+        allowed.high, low * binned_pitch, 0.5 * std::max(allowed.high, 0.0));
     out.column_darkening = -best.k.c / (best.k.a + best.k.b);
     out.open_level = 1.0 / (best.k.a + best.k.b);
     out.rms = best.rms;
-    out.scatter.weight_uncertainty = weightUncertainty(best);
+    out.scatter.weight_uncertainty = 0.5 * std::max(allowed.high, 0.0);
+    out.scatter.sigma_mm = allowed.sigma_at_high_px * binned_pitch;
     // Without a halo G(P) is 1 in the open beam: a + b is its level.
     out.primary = solvePrimary(normalized, columnAttenuation(normalized),
                                {best.k.a + best.k.b, 0.0, best.k.c}, 1.0);
@@ -257,7 +302,6 @@ void searchWidth(const FitAt& fitAt, size_t count, const Image& normalized, doub
   // the weight's from the least squares at that width combined with its
   // change across the width's uncertainty.
   const double t = std::log(best.sigma_px), h = 0.05;
-    auto sum = [&](const WidthFit& fit) { return fit.rms * fit.rms * static_cast<double>(count); };
   const WidthFit minus = at(t - h), plus = at(t + h);
   const double curvature = (sum(plus) - 2.0 * sum(best) + sum(minus)) / (h * h);
   const double u_log_sigma =
@@ -265,8 +309,12 @@ void searchWidth(const FitAt& fitAt, size_t count, const Image& normalized, doub
   const WidthFit wider = at(t + std::min(u_log_sigma, 0.5)),
                  narrower = at(t - std::min(u_log_sigma, 0.5));
   const double weight = weightOf(best.k);
-  const double u_weight =
-      std::hypot(weightUncertainty(best), 0.5 * std::abs(weightOf(wider.k) - weightOf(narrower.k)));
+  // Never less than the spread of the weights the grid's widths allow (a
+  // flat profile the curvature at the optimum does not see).
+  const Allowed allowed = allowedWeights(best);
+  const double u_weight = std::max(
+      std::hypot(weightUncertainty(best), 0.5 * std::abs(weightOf(wider.k) - weightOf(narrower.k))),
+      0.25 * (allowed.high - allowed.low));
   const double sigma_mm = best.sigma_px * binned_pitch;
   if (!(u_log_sigma < 0.5) || !(u_weight < 0.5 * weight) || !(weight < 0.9))
     fail(

@@ -368,7 +368,9 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
         {influence, value, u, largestDifference(material, moved.material, range)});
   };
   const ScatterModel& scatter = out.scatter;
-  if (scatter.enabled()) {
+  // A halo too faint to measure is left out with its bound as the
+  // weight's uncertainty: its influence counts as well.
+  if (scatter.enabled() || scatter.weight_uncertainty > 0.0) {
     // The radiograph without a scatter of another weight or width: the
     // halo's removal (with its darkening) or the job's.
     auto without = [&](double weight, double sigma_mm) {

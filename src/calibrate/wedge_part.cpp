@@ -203,7 +203,9 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
     }
   };
   const ScatterModel& scatter = out.scatter;
-  if (scatter.enabled()) {
+  // A halo too faint to measure is left out with its bound as the
+  // weight's uncertainty: its influence counts as well.
+  if (scatter.enabled() || scatter.weight_uncertainty > 0.0) {
     auto without = [&](double weight, double sigma_mm) {
       if (out.halo) return out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
       ScatterModel moved = scatter;

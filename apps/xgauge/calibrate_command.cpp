@@ -112,7 +112,8 @@ void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
       std::printf("eq. 3.7: x0 = %.4f mm, x_max = %.4f mm\n", result.x0_mm, result.x_max_mm);
     std::printf("uncertainty of the curve: %.2g from its table", result.table_uncertainty);
     for (const CurveInfluence& i : result.influences)
-      std::printf(", %.2g from the %s (u = %.3g)", i.change, i.name.c_str(), i.uncertainty);
+      std::printf(i.uncertainty > 0.0 ? ", %.2g from the %s (u = %.3g)" : ", %.2g from the %s",
+                  i.change, i.name.c_str(), i.uncertainty);
     std::printf("\n");
     writeWedgeCalibration(job, result, truth, wedge.output, wedge.report);
     printMaterial(result.material, wedge);

@@ -170,17 +170,46 @@ constexpr double kMaxNegativeFraction = 0.001;
 
 // The halo's width profile (searchWidth): a rise of the open beam's residual
 // sum of squares by this many rms^2 is about two standard deviations in one
-// parameter; a scatter whose weight the open beam cannot bound below
-// kMaxUnseenWeight is not "none" but undecided.
+// parameter. A scatter the open beam cannot bound below kMaxUnseenEffect
+// (its largest change of the radiograph inside the part's shadow, in
+// transmission) is not "none" but undecided.
 constexpr double kProfileRise = 4.0;
-constexpr double kMaxUnseenWeight = 0.05;
+constexpr double kMaxUnseenEffect = 0.005;
+
+// How much a halo of width sigma_px changes the radiograph inside the
+// part's shadow per unit weight: the median of |m - G(m)| over the pixels
+// not in `open` (sorted), m the binned radiograph `n` smoothed by one pixel
+// (its noise is not a change). A narrow halo barely changes a smooth shadow
+// whatever its weight (only its edges, which the median leaves out); one as
+// wide as the detector adds a level that differs from the shadow by its
+// contrast.
+double shadowChange(const Image& n, const std::vector<int>& open, double sigma_px) {
+  const Image smooth = gaussianBlur(n, 1.0);
+  const Image blurred = gaussianBlur(smooth, sigma_px);
+  std::vector<float> change;
+  auto next = open.begin();
+  for (size_t i = 0; i < smooth.pixels().size(); ++i) {
+    if (next != open.end() && static_cast<size_t>(*next) == i) {
+      ++next;
+      continue;
+    }
+    change.push_back(std::abs(smooth.pixels()[i] - blurred.pixels()[i]));
+  }
+  if (change.empty()) return 0.0;
+  const auto middle = change.begin() + static_cast<std::ptrdiff_t>(change.size() / 2);
+  std::nth_element(change.begin(), middle, change.end());
+  return static_cast<double>(*middle);
+}
 
 // The width's search and what follows from its best fit, shared by both
 // estimates: `fitAt(sigma_px)` fits (a, b, c) at one width (binned pixels)
-// over `count` pixels; `out` has its binning and shadow set.
+// over the pixels `open` (sorted) of `n`, the radiograph binned; `out` has
+// its binning and shadow set.
 template <typename FitAt>
-void searchWidth(const FitAt& fitAt, size_t count, const Image& normalized, double pitch_mm,
-                 const std::string& name, const HaloOptions& options, HaloFit& out) {
+void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& open,
+                 const Image& normalized, double pitch_mm, const std::string& name,
+                 const HaloOptions& options, HaloFit& out) {
+  const size_t count = open.size();
   // The width: a logarithmic grid, then golden sections around its best point.
   const int width = std::max(normalized.width(), normalized.height()) / out.binning;
   const double binned_pitch = pitch_mm * out.binning;
@@ -230,8 +259,11 @@ void searchWidth(const FitAt& fitAt, size_t count, const Image& normalized, doub
   // wider than the open beam is a near-uniform level over it, which trades
   // with the open level: a wide halo of any weight may then fit as well as
   // none, and the range says so.
+  // The largest effect is the weight's bound times the change per unit
+  // weight at its width (shadowChange).
   struct Allowed {
-    double low = HUGE_VAL, high = -HUGE_VAL, sigma_at_high_px = 0.0;
+    double low = HUGE_VAL, high = -HUGE_VAL;
+    double effect = 0.0, weight_at_effect = 0.0, sigma_at_effect_px = 0.0;
   };
   auto allowedWeights = [&](const WidthFit& best_fit) {
     Allowed allowed;
@@ -240,7 +272,12 @@ void searchWidth(const FitAt& fitAt, size_t count, const Image& normalized, doub
       if (!(sum(fit) <= limit)) continue;
       const double w = weightOf(fit.k), u = weightUncertainty(fit);
       allowed.low = std::min(allowed.low, w - 2.0 * u);
-      if (w + 2.0 * u > allowed.high) allowed.high = w + 2.0 * u, allowed.sigma_at_high_px = fit.sigma_px;
+      allowed.high = std::max(allowed.high, w + 2.0 * u);
+      const double bound = std::max(std::abs(w - 2.0 * u), std::abs(w + 2.0 * u));
+      const double effect = bound * shadowChange(n, open, fit.sigma_px);
+      if (effect > allowed.effect)
+        allowed.effect = effect, allowed.weight_at_effect = bound,
+        allowed.sigma_at_effect_px = fit.sigma_px;
     }
     return allowed;
   };
@@ -248,30 +285,30 @@ void searchWidth(const FitAt& fitAt, size_t count, const Image& normalized, doub
   // see), whose width is then arbitrary and does not matter; or a blur no
   // wider than the narrowest width searched, which is the detector's
   // unsharpness rather than a halo. Said only when no width that explains
-  // the open beam as well allows a weight above kMaxUnseenWeight; the
-  // largest it allows is then the weight's uncertainty (at two standard
-  // uncertainties) at the width that allows it, so that a curve fitted
-  // without the scatter carries its influence.
+  // the open beam as well allows a halo that would change the shadow by
+  // more than kMaxUnseenEffect; the weight that changes it most is then the
+  // weight's uncertainty (at two standard uncertainties) at its width, so
+  // that a curve fitted without the scatter carries its influence.
   if (best_at == 0 || weightOf(best.k) < std::max(0.003, 3.0 * weightUncertainty(best))) {
     const Allowed allowed = allowedWeights(best);
-    if (!(allowed.high <= kMaxUnseenWeight))
+    const double sigma_mm = allowed.sigma_at_effect_px * binned_pitch;
+    if (!(allowed.effect <= kMaxUnseenEffect))
       fail(
           "{}: the scatter's halo does not decide the scatter: no halo fits the open beam around "
-          "the part, and so does a halo of weight up to {:.3f} at sigma {:.3g} mm (the open beam "
-          "is too small or too far from the part to tell a halo that wide from the open level): "
-          "give the job's \"scatter\"",
-          name, allowed.high, allowed.sigma_at_high_px * binned_pitch);
+          "the part, and so does one of weight {:.3f} at sigma {:.3g} mm, which would change "
+          "the part's shadow by up to {:.3f} (the open beam is too small or too far from the "
+          "part to tell a halo that wide from the open level): give the job's \"scatter\"",
+          name, allowed.weight_at_effect, sigma_mm, allowed.effect);
     spdlog::warn(
-        "{}: no measurable scatter halo (weight {:.4f} +- {:.4f} at sigma {:.3g} mm, at most "
-        "{:.4f} at any width from {:.3g} mm that fits as well): scatter left out, its "
-        "uncertainty {:.4f}",
+        "{}: no measurable scatter halo (weight {:.4f} +- {:.4f} at sigma {:.3g} mm; of the "
+        "widths that fit as well, a weight of {:.4f} at {:.3g} mm would change the shadow most, "
+        "by {:.4f}): scatter left out, half that change counted in the curve's uncertainty",
         name, weightOf(best.k), weightUncertainty(best), best.sigma_px * binned_pitch,
-        allowed.high, low * binned_pitch, 0.5 * std::max(allowed.high, 0.0));
+        allowed.weight_at_effect, sigma_mm, allowed.effect);
     out.column_darkening = -best.k.c / (best.k.a + best.k.b);
     out.open_level = 1.0 / (best.k.a + best.k.b);
     out.rms = best.rms;
-    out.scatter.weight_uncertainty = 0.5 * std::max(allowed.high, 0.0);
-    out.scatter.sigma_mm = allowed.sigma_at_high_px * binned_pitch;
+    out.unseen_change = allowed.effect;
     // Without a halo G(P) is 1 in the open beam: a + b is its level.
     out.primary = solvePrimary(normalized, columnAttenuation(normalized),
                                {best.k.a + best.k.b, 0.0, best.k.c}, 1.0);
@@ -355,7 +392,7 @@ void fitOpenBeam(const Image& n, const std::vector<int>& open, const Image& norm
                  HaloFit& out) {
   checkOpenBeam(n, open, name, options, out);
   const std::vector<double> attenuation = columnAttenuation(n);
-  searchWidth([&](double sigma) { return fitAtWidth(n, attenuation, open, sigma); }, open.size(),
+  searchWidth([&](double sigma) { return fitAtWidth(n, attenuation, open, sigma); }, n, open,
               normalized, pitch_mm, name, options, out);
 }
 

@@ -146,7 +146,8 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
     for (const char* key : {"max_thickness_mm", "ramp_length_mm"})
       if (wedge.has(key))
         wedge.at(key).fail("the wedge's model gives its dimensions: leave this key out");
-    if (root.has("ramp")) root.at("ramp").fail("a wedge fitted as a known part has no ramp to give");
+    if (root.has("ramp"))
+      root.at("ramp").fail("a wedge fitted as a known part has no ramp to give");
     job.model_file = folder / model->string();
     try {
       job.model = std::make_shared<const PartModel>(PartModel::load(job.model_file));
@@ -368,9 +369,11 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
         {influence, value, u, largestDifference(material, moved.material, range)});
   };
   const ScatterModel& scatter = out.scatter;
-  // A halo too faint to measure is left out with its bound as the
-  // weight's uncertainty: its influence counts as well.
-  if (scatter.enabled() || scatter.weight_uncertainty > 0.0) {
+  // A halo too faint to measure, left out: the most it could change the
+  // shadow by, at one standard uncertainty.
+  if (out.halo && out.halo->unseen_change > 0.0)
+    out.influences.push_back({"unmeasured scatter halo", 0.0, 0.0, 0.5 * out.halo->unseen_change});
+  if (scatter.enabled()) {
     // The radiograph without a scatter of another weight or width: the
     // halo's removal (with its darkening) or the job's.
     auto without = [&](double weight, double sigma_mm) {

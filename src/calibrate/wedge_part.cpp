@@ -42,7 +42,8 @@ Schedule wedgeSchedule() {
   // the rounds' least squares up to the level about 1024 px wide: a pose to
   // a tenth of those pixels, and a 4096^2 shot calibrates in minutes, not
   // tens of minutes.
-  s.joint = {{Method::kBobyqa, 512, 2, 1200, 1.0, 10.0}, {Method::kBobyqa, 1024, 2, 400, 0.3, 10.0}};
+  s.joint = {{Method::kBobyqa, 512, 2, 1200, 1.0, 10.0},
+             {Method::kBobyqa, 1024, 2, 400, 0.3, 10.0}};
   s.least_squares = {true, 1024, 2, 30};
   return s;
 }
@@ -203,9 +204,11 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
     }
   };
   const ScatterModel& scatter = out.scatter;
-  // A halo too faint to measure is left out with its bound as the
-  // weight's uncertainty: its influence counts as well.
-  if (scatter.enabled() || scatter.weight_uncertainty > 0.0) {
+  // A halo too faint to measure, left out: the most it could change the
+  // shadow by, at one standard uncertainty.
+  if (out.halo && out.halo->unseen_change > 0.0)
+    out.influences.push_back({"unmeasured scatter halo", 0.0, 0.0, 0.5 * out.halo->unseen_change});
+  if (scatter.enabled()) {
     auto without = [&](double weight, double sigma_mm) {
       if (out.halo) return out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
       ScatterModel moved = scatter;

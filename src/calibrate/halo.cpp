@@ -258,9 +258,9 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   // the weight give or take two of its standard uncertainties. A halo much
   // wider than the open beam is a near-uniform level over it, which trades
   // with the open level: a wide halo of any weight may then fit as well as
-  // none, and the range says so.
-  // The largest effect is the weight's bound times the change per unit
-  // weight at its width (shadowChange).
+  // none, and the range says so. What such a halo would do to the part's
+  // shadow is its weight's bound times the change per unit weight at its
+  // width (shadowChange); the largest is kept with its width.
   struct Allowed {
     double low = HUGE_VAL, high = -HUGE_VAL;
     double effect = 0.0, weight_at_effect = 0.0, sigma_at_effect_px = 0.0;

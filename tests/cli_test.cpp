@@ -361,6 +361,18 @@ TEST_F(CalibrateWedge, WritesTheMaterialFiguresAndPlot) {
   EXPECT_NEAR(std::stod(r.output.substr(at + 16)), 40.0, 1.0) << r.output;
   for (const char* file : {"material.json", "calibration.json", "report.html"})
     EXPECT_TRUE(fs::exists(out("cal") + "/" + file)) << file;
+  // The shot has no scatter and the halo fit finds none it could not bound:
+  // the most an unmeasured halo could change the shadow by counts in the
+  // curve's uncertainty.
+  std::ifstream in(out("cal") + "/calibration.json");
+  const nlohmann::json uncertainty = nlohmann::json::parse(in).at("uncertainty");
+  double unmeasured = -1.0;
+  for (const auto& influence : uncertainty.at("influences"))
+    if (influence.at("name") == "unmeasured scatter halo")
+      unmeasured = influence.at("curve_change").get<double>();
+  EXPECT_GT(unmeasured, 0.0) << uncertainty.dump();
+  EXPECT_LE(unmeasured, 0.0025);
+  EXPECT_GE(uncertainty.at("transmission").get<double>(), unmeasured);
 }
 
 TEST_F(CalibrateWedge, NoRamp) {

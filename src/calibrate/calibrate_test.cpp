@@ -332,17 +332,17 @@ TEST_F(Calibrate, ATurnedWedgeIsReadAlongItsRows) {
 struct KnownWedgeCase {
   int side;
   double pitch_mm, magnification;
-  Vec3 rotation_deg;       // tilts and the turn about the beam
-  Vec2 centre_offset_mm;   // of the block's centre from the beam's axis, at its depth
+  Vec3 rotation_deg;        // tilts and the turn about the beam
+  Vec2 centre_offset_mm;    // of the block's centre from the beam's axis, at its depth
   double weight, sigma_mm;  // the detector's scatter, given in the job
 };
 
 TEST_F(Calibrate, AWedgeFittedAsAKnownPartGivesBackItsMaterial) {
-  const std::map<std::string, double> dims{
-      {"thickness", 20.23},       {"thin_end", 0.41},         {"pocket_left_top", 29.37},
-      {"pocket_right_top", 29.88}, {"wall_left_top", 8.62},    {"wall_right_top", 8.57},
-      {"wall_left_mid", 9.41},     {"wall_right_mid", 7.86},   {"pocket_left_mid", 29.52},
-      {"pocket_right_mid", 29.81}};
+  const std::map<std::string, double> dims{{"thickness", 20.23},       {"thin_end", 0.41},
+                                           {"pocket_left_top", 29.37}, {"pocket_right_top", 29.88},
+                                           {"wall_left_top", 8.62},    {"wall_right_top", 8.57},
+                                           {"wall_left_mid", 9.41},    {"wall_right_mid", 7.86},
+                                           {"pocket_left_mid", 29.52}, {"pocket_right_mid", 29.81}};
   const KnownWedgeCase setups[] = {
       // Whole, turned by 90 degrees and tilted; scatter.
       {256, 0.8, 1.6, Vec3(2.5, -3.5, 90.0), Vec2(3.0, -2.0), 0.12, 40.0},
@@ -359,8 +359,8 @@ TEST_F(Calibrate, AWedgeFittedAsAKnownPartGivesBackItsMaterial) {
     machine.cx_px = 0.5 * c.side + 11.3, machine.cy_px = 0.5 * c.side - 7.6;
     std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
     const double z = 900.0 * (1.0 - 1.0 / c.magnification);
-    Pose pose = Pose::fromEulerDeg(c.rotation_deg, Vec3(c.centre_offset_mm.x(),
-                                                        c.centre_offset_mm.y(), z));
+    Pose pose =
+        Pose::fromEulerDeg(c.rotation_deg, Vec3(c.centre_offset_mm.x(), c.centre_offset_mm.y(), z));
     pose.translation_mm -= pose.rotation * Vec3(0.0, 45.0, dims.at("thickness") / 2);
     Image image = renderWedgeBlock(machine, pose, 3, dims);
     if (c.weight > 0.0) image = scatterBlur(std::move(image), c.weight, c.sigma_mm / c.pitch_mm);
@@ -379,8 +379,8 @@ TEST_F(Calibrate, AWedgeFittedAsAKnownPartGivesBackItsMaterial) {
     const WedgeCalibration result = calibrateFromWedge(loaded);
     ASSERT_TRUE(result.part);
     // The pose: the turn and the tilts within a tenth of a degree.
-    const Mat3 error = result.part->measurement.radiographs.front().pose.rotation *
-                       pose.rotation.transpose();
+    const Mat3 error =
+        result.part->measurement.radiographs.front().pose.rotation * pose.rotation.transpose();
     EXPECT_LT(std::acos(std::clamp(0.5 * (error.trace() - 1.0), -1.0, 1.0)) * kRadToDeg, 0.1);
     EXPECT_NEAR(result.magnification, c.magnification, 0.01 * c.magnification);
     for (const ExponentialTerm& t : result.material.terms())
@@ -389,8 +389,8 @@ TEST_F(Calibrate, AWedgeFittedAsAKnownPartGivesBackItsMaterial) {
     double worst = 0.0;
     for (int i = 0; i <= 90; ++i) {
       const double x = dims.at("thickness") * (0.05 + 0.01 * i);
-      worst = std::max(worst, std::abs(result.material.transmission(x) -
-                                       kWedgeCurve.transmission(x)));
+      worst =
+          std::max(worst, std::abs(result.material.transmission(x) - kWedgeCurve.transmission(x)));
     }
     EXPECT_LT(worst, 1e-3);
     // The curve's uncertainty holds the table's and one influence per
@@ -417,9 +417,10 @@ TEST_F(Calibrate, AWedgeModelsCaliperValuesAreCheckedByName) {
                          {"wall_left_mid", 9.2},     {"wall_right_mid", 8.1},
                          {"pocket_left_mid", 29.7},  {"pocket_right_mid", 29.65}};
   auto write = [&](const nlohmann::json& wedge, const nlohmann::json& extra) {
-    nlohmann::json job = {{"machine", "machine.json"},
-                          {"radiograph", {{"image", "wedge.tif"}, {"white_region", {8, 8, 40, 40}}}},
-                          {"wedge", wedge}};
+    nlohmann::json job = {
+        {"machine", "machine.json"},
+        {"radiograph", {{"image", "wedge.tif"}, {"white_region", {8, 8, 40, 40}}}},
+        {"wedge", wedge}};
     if (extra.is_object()) job.update(extra);
     std::ofstream(dir_ / "job.json") << job.dump();
     return dir_ / "job.json";
@@ -431,17 +432,23 @@ TEST_F(Calibrate, AWedgeModelsCaliperValuesAreCheckedByName) {
   nlohmann::json missing = dims;
   missing.erase("thin_end");
   expectErrorMentioning(
-      [&] { WedgeCalibrationJob::load(write({{"model", model}, {"dimensions", missing}}, {})); },
+      [&] {
+        WedgeCalibrationJob::load(write({{"model", model}, {"dimensions", missing}}, {}));
+      },
       "'thin_end' is missing");
   nlohmann::json unknown = dims;
   unknown["thikness"] = 20.0;
   expectErrorMentioning(
-      [&] { WedgeCalibrationJob::load(write({{"model", model}, {"dimensions", unknown}}, {})); },
+      [&] {
+        WedgeCalibrationJob::load(write({{"model", model}, {"dimensions", unknown}}, {}));
+      },
       "thikness");
   nlohmann::json outside = dims;
   outside["thickness"] = 40.0;
   expectErrorMentioning(
-      [&] { WedgeCalibrationJob::load(write({{"model", model}, {"dimensions", outside}}, {})); },
+      [&] {
+        WedgeCalibrationJob::load(write({{"model", model}, {"dimensions", outside}}, {}));
+      },
       "thickness");
   expectErrorMentioning(
       [&] {
@@ -451,8 +458,8 @@ TEST_F(Calibrate, AWedgeModelsCaliperValuesAreCheckedByName) {
       "the wedge's model gives its dimensions");
   expectErrorMentioning(
       [&] {
-        WedgeCalibrationJob::load(write({{"model", model}, {"dimensions", dims}},
-                                        {{"ramp", {{"rows", {10, 400}}}}}));
+        WedgeCalibrationJob::load(
+            write({{"model", model}, {"dimensions", dims}}, {{"ramp", {{"rows", {10, 400}}}}}));
       },
       "no ramp to give");
 }
@@ -609,7 +616,7 @@ TEST(ScatterHalo, ADetectorWithoutScatterGetsNoneWithItsBound) {
   const HaloFit fit = fitScatterHalo(image, 0.4, "shot.tif", narrower);
   EXPECT_FALSE(fit.scatter.enabled());
   EXPECT_GT(fit.unseen_change, 0.0);
-  EXPECT_LT(fit.unseen_change, 0.005);
+  EXPECT_LE(fit.unseen_change, 0.005 / 3.0);  // a third of the largest bound allowed
   EXPECT_NEAR(fit.column_darkening, 0.0, 0.005);
 }
 

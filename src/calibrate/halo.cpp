@@ -93,7 +93,13 @@ struct WidthFit {
   Coefficients k;
   double rms = 0.0;
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+  // How much the residual's correlation inflates a sum of squares'
+  // fluctuation over white noise's (at least 1): see fitAtWidth.
+  double correlation = 1.0;
 };
+
+// The residual's blocks: kCorrelationBlock binned pixels a side.
+constexpr int kCorrelationBlock = 16;
 
 WidthFit fitAtWidth(const Image& n, const std::vector<double>& attenuation,
                     const std::vector<int>& open, double sigma_px) {
@@ -117,13 +123,28 @@ WidthFit fitAtWidth(const Image& n, const std::vector<double>& attenuation,
     out.k = {k(0), k(1), k(2)};
     if (!(out.k.a > 0.05)) break;  // no primary left to solve for: the width is far off
     if (step + 1 == kFixedPointSteps) {
+      // The residual, and its sums over blocks: the open beam's residual
+      // also holds what no halo explains (the panel's gain pattern, the
+      // heel, the previous shot's ghost), smooth over many pixels, so that
+      // the residual's sum of squares fluctuates between widths by far more
+      // than white noise's would. The ratio of the blocks' squared sums to
+      // the pixels' (1 for white noise, up to a block's pixel count for a
+      // residual smooth over it) says by how much.
+      const int blocks_x = (n.width() + kCorrelationBlock - 1) / kCorrelationBlock;
+      const int blocks_y = (n.height() + kCorrelationBlock - 1) / kCorrelationBlock;
+      std::vector<double> block(static_cast<size_t>(blocks_x) * static_cast<size_t>(blocks_y), 0.0);
       double sum = 0.0;
       for (const int i : open) {
         const double r = static_cast<double>(values[static_cast<size_t>(i)]) - k(0) -
                          k(1) * static_cast<double>(g[static_cast<size_t>(i)]) -
                          k(2) * attenuation[static_cast<size_t>(i % n.width())];
         sum += r * r;
+        block[static_cast<size_t>((i / n.width()) / kCorrelationBlock * blocks_x +
+                                  (i % n.width()) / kCorrelationBlock)] += r;
       }
+      double blocked = 0.0;
+      for (const double b : block) blocked += b * b;
+      out.correlation = sum > 0.0 ? std::max(1.0, blocked / sum) : 1.0;
       out.rms = std::sqrt(sum / static_cast<double>(open.size()));
       out.covariance = out.rms * out.rms * normal.completeOrthogonalDecomposition().pseudoInverse();
       return out;
@@ -168,12 +189,14 @@ void checkOpenBeam(const Image& n, const std::vector<int>& open, const std::stri
 constexpr float kNegativePrimary = 0.01f;
 constexpr double kMaxNegativeFraction = 0.001;
 
-// The halo's width profile (searchWidth): a rise of the open beam's residual
-// sum of squares by this many rms^2 is about two standard deviations in one
-// parameter. A scatter the open beam cannot bound below kMaxUnseenEffect
+// The halo's width profile (searchWidth): kProfileSigmas standard
+// deviations in one parameter, a rise of the open beam's residual sum of
+// squares by its square times rms^2 (a claim that there is no scatter, or
+// of a weight's spread, should not rest on a 2-sigma wobble of the
+// profile). A scatter the open beam cannot bound below kMaxUnseenEffect
 // (its largest change of the radiograph inside the part's shadow, in
 // transmission) is not "none" but undecided.
-constexpr double kProfileRise = 4.0;
+constexpr double kProfileSigmas = 3.0;
 constexpr double kMaxUnseenEffect = 0.005;
 
 // How much a halo of width sigma_px changes the radiograph inside the
@@ -222,8 +245,9 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
     grid.push_back(fitAt(sigma));
     out.sigma_mm.push_back(sigma * binned_pitch);
     out.residual_rms.push_back(grid.back().rms);
-    spdlog::debug("{}: halo at sigma {:.3g} mm: rms {:.6g}, weight {:.4f}", name,
-                  sigma * binned_pitch, grid.back().rms, weightOf(grid.back().k));
+    spdlog::debug("{}: halo at sigma {:.3g} mm: rms {:.6g}, weight {:.4f}, correlation {:.1f}",
+                  name, sigma * binned_pitch, grid.back().rms, weightOf(grid.back().k),
+                  grid.back().correlation);
   }
   const auto best_at = static_cast<int>(
       std::min_element(grid.begin(), grid.end(),
@@ -253,9 +277,9 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   };
   auto sum = [&](const WidthFit& fit) { return fit.rms * fit.rms * static_cast<double>(count); };
   // The weights the open beam allows: at every width of the grid whose
-  // residual sum of squares is within kProfileRise rms^2 of the best (as
-  // well explained, to about two standard deviations in one parameter),
-  // the weight give or take two of its standard uncertainties. A halo much
+  // residual sum of squares is within kProfileSigmas^2 rms^2 of the best,
+  // times the residual's correlation (as well explained), the weight give or
+  // take kProfileSigmas of its standard uncertainties. A halo much
   // wider than the open beam is a near-uniform level over it, which trades
   // with the open level: a wide halo of any weight may then fit as well as
   // none, and the range says so. What such a halo would do to the part's
@@ -267,13 +291,16 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   };
   auto allowedWeights = [&](const WidthFit& best_fit) {
     Allowed allowed;
-    const double limit = sum(best_fit) + kProfileRise * best_fit.rms * best_fit.rms;
+    const double limit = sum(best_fit) + kProfileSigmas * kProfileSigmas * best_fit.correlation *
+                                             best_fit.rms * best_fit.rms;
     for (const WidthFit& fit : grid) {
       if (!(sum(fit) <= limit)) continue;
-      const double w = weightOf(fit.k), u = weightUncertainty(fit);
-      allowed.low = std::min(allowed.low, w - 2.0 * u);
-      allowed.high = std::max(allowed.high, w + 2.0 * u);
-      const double bound = std::max(std::abs(w - 2.0 * u), std::abs(w + 2.0 * u));
+      const double w = weightOf(fit.k), u = weightUncertainty(fit) * std::sqrt(fit.correlation);
+      const double lo = w - kProfileSigmas * u, hi = w + kProfileSigmas * u;
+      allowed.low = std::min(allowed.low, lo);
+      allowed.high = std::max(allowed.high, hi);
+      // No scintillator scatters more than max_weight of its light.
+      const double bound = std::min(std::max(std::abs(lo), std::abs(hi)), options.max_weight);
       const double effect = bound * shadowChange(n, open, fit.sigma_px);
       if (effect > allowed.effect)
         allowed.effect = effect, allowed.weight_at_effect = bound,
@@ -286,9 +313,8 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   // wider than the narrowest width searched, which is the detector's
   // unsharpness rather than a halo. Said only when no width that explains
   // the open beam as well allows a halo that would change the shadow by
-  // more than kMaxUnseenEffect; the weight that changes it most is then the
-  // weight's uncertainty (at two standard uncertainties) at its width, so
-  // that a curve fitted without the scatter carries its influence.
+  // more than kMaxUnseenEffect; a third of that change counts in the curve's
+  // uncertainty.
   if (best_at == 0 || weightOf(best.k) < std::max(0.003, 3.0 * weightUncertainty(best))) {
     const Allowed allowed = allowedWeights(best);
     const double sigma_mm = allowed.sigma_at_effect_px * binned_pitch;
@@ -302,13 +328,14 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
     spdlog::warn(
         "{}: no measurable scatter halo (weight {:.4f} +- {:.4f} at sigma {:.3g} mm; of the "
         "widths that fit as well, a weight of {:.4f} at {:.3g} mm would change the shadow most, "
-        "by {:.4f}): scatter left out, half that change counted in the curve's uncertainty",
+        "by {:.4f}): scatter left out, a third of that change counted in the curve's "
+        "uncertainty",
         name, weightOf(best.k), weightUncertainty(best), best.sigma_px * binned_pitch,
         allowed.weight_at_effect, sigma_mm, allowed.effect);
     out.column_darkening = -best.k.c / (best.k.a + best.k.b);
     out.open_level = 1.0 / (best.k.a + best.k.b);
     out.rms = best.rms;
-    out.unseen_change = allowed.effect;
+    out.unseen_change = allowed.effect / kProfileSigmas;
     // Without a halo G(P) is 1 in the open beam: a + b is its level.
     out.primary = solvePrimary(normalized, columnAttenuation(normalized),
                                {best.k.a + best.k.b, 0.0, best.k.c}, 1.0);
@@ -351,7 +378,7 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   const Allowed allowed = allowedWeights(best);
   const double u_weight = std::max(
       std::hypot(weightUncertainty(best), 0.5 * std::abs(weightOf(wider.k) - weightOf(narrower.k))),
-      0.25 * (allowed.high - allowed.low));
+      (allowed.high - allowed.low) / (2.0 * kProfileSigmas));
   const double sigma_mm = best.sigma_px * binned_pitch;
   if (!(u_log_sigma < 0.5) || !(u_weight < 0.5 * weight) || !(weight < 0.9))
     fail(

@@ -212,8 +212,8 @@ std::vector<double> poseKnownPart(const PartCalibrationJob& job, PartCalibration
     const MeasurementResult fitted = measure(free, with, joint);
     with = fitted.theta;
     with.resize(theta.size());
-    spdlog::info("poses with a free curve: loss {:.6g} (with eq. 3.8's: {:.6g})",
-                 fitted.total_loss, out.measurement.total_loss);
+    spdlog::info("poses with a free curve: loss {:.6g} (with eq. 3.8's: {:.6g})", fitted.total_loss,
+                 out.measurement.total_loss);
     theta = with;
   }
   return theta;

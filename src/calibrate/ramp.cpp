@@ -115,8 +115,7 @@ std::array<double, 2> findRampRows(const std::vector<double>& p, double noise,
   std::vector<double> ps(p.size());
   for (int i = 0; i < n; ++i) ps[static_cast<size_t>(i)] = medianOf(p, i - 3, i + 3);
   // The shadow: the longest run of rows clearly below the open beam.
-  const double threshold =
-      openLevel(brightestOf(ps)) - std::max(0.003, 6.0 * noise);
+  const double threshold = openLevel(brightestOf(ps)) - std::max(0.003, 6.0 * noise);
   int best_first = -1, best_last = -2;
   for (int i = 0; i < n;) {
     if (!(ps[static_cast<size_t>(i)] < threshold)) {
@@ -271,8 +270,7 @@ RampDetection detectRamp(const Image& normalized, const RampOptions& options,
   std::vector<double> oriented = out.profile;
   if (options.columns) {
     const int n = static_cast<int>(oriented.size());
-    const double shadow =
-        openLevel(brightestOf(oriented)) - 0.01;
+    const double shadow = openLevel(brightestOf(oriented)) - 0.01;
     int first = 0, last = n - 1;
     while (first < n && oriented[static_cast<size_t>(first)] >= shadow) ++first;
     while (last > first && oriented[static_cast<size_t>(last)] >= shadow) --last;

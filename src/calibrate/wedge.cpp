@@ -369,10 +369,10 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
         {influence, value, u, largestDifference(material, moved.material, range)});
   };
   const ScatterModel& scatter = out.scatter;
-  // A halo too faint to measure, left out: the most it could change the
-  // shadow by, at one standard uncertainty.
+  // A halo too faint to measure, left out: what it could change the shadow
+  // by, as a standard uncertainty.
   if (out.halo && out.halo->unseen_change > 0.0)
-    out.influences.push_back({"unmeasured scatter halo", 0.0, 0.0, 0.5 * out.halo->unseen_change});
+    out.influences.push_back({"unmeasured scatter halo", 0.0, 0.0, out.halo->unseen_change});
   if (scatter.enabled()) {
     // The radiograph without a scatter of another weight or width: the
     // halo's removal (with its darkening) or the job's.

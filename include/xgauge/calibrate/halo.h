@@ -57,9 +57,9 @@ struct HaloFit {
   std::vector<double> sigma_mm, residual_rms;
   double open_level = 1.0;  // 1 / (a + b): the open beam's level in `normalized`
   // No measurable halo (scatter.weight 0): the most a halo that fits the
-  // open beam as well could change the part's shadow by (at two standard
-  // uncertainties, in transmission), which a curve read without a scatter
-  // counts in its uncertainty.
+  // open beam as well could change the part's shadow by (in transmission),
+  // as a standard uncertainty (a third of the 3-sigma bound), which a curve
+  // read without a scatter counts in its uncertainty.
   double unseen_change = 0.0;
   // The radiograph without the scatter and the darkening: (n - b g - c A) / a.
   Image primary;

@@ -201,13 +201,12 @@ constexpr double kMaxUnseenEffect = 0.005;
 
 // How much a halo of width sigma_px changes the radiograph inside the
 // part's shadow per unit weight: the median of |m - G(m)| over the pixels
-// not in `open` (sorted), m the binned radiograph `n` smoothed by one pixel
-// (its noise is not a change). A narrow halo barely changes a smooth shadow
-// whatever its weight (only its edges, which the median leaves out); one as
-// wide as the detector adds a level that differs from the shadow by its
-// contrast.
-double shadowChange(const Image& n, const std::vector<int>& open, double sigma_px) {
-  const Image smooth = gaussianBlur(n, 1.0);
+// not in `open` (sorted), `smooth` the binned radiograph smoothed by one
+// pixel (its noise is not a change). A narrow halo barely changes a smooth
+// shadow whatever its weight (only its edges, which the median leaves out);
+// one as wide as the detector adds a level that differs from the shadow by
+// its contrast.
+double shadowChange(const Image& smooth, const std::vector<int>& open, double sigma_px) {
   const Image blurred = gaussianBlur(smooth, sigma_px);
   std::vector<float> change;
   auto next = open.begin();
@@ -279,32 +278,21 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   // The weights the open beam allows: at every width of the grid whose
   // residual sum of squares is within kProfileSigmas^2 rms^2 of the best,
   // times the residual's correlation (as well explained), the weight give or
-  // take kProfileSigmas of its standard uncertainties. A halo much
-  // wider than the open beam is a near-uniform level over it, which trades
-  // with the open level: a wide halo of any weight may then fit as well as
-  // none, and the range says so. What such a halo would do to the part's
-  // shadow is its weight's bound times the change per unit weight at its
-  // width (shadowChange); the largest is kept with its width.
-  struct Allowed {
-    double low = HUGE_VAL, high = -HUGE_VAL;
-    double effect = 0.0, weight_at_effect = 0.0, sigma_at_effect_px = 0.0;
+  // take kProfileSigmas of its standard uncertainties. A halo much wider
+  // than the open beam is a near-uniform level over it, which trades with
+  // the open level: a wide halo of any weight may then fit as well as none,
+  // and the range says so.
+  struct AllowedWeights {
+    double sigma_px, low, high;
   };
   auto allowedWeights = [&](const WidthFit& best_fit) {
-    Allowed allowed;
+    std::vector<AllowedWeights> allowed;
     const double limit = sum(best_fit) + kProfileSigmas * kProfileSigmas * best_fit.correlation *
                                              best_fit.rms * best_fit.rms;
     for (const WidthFit& fit : grid) {
       if (!(sum(fit) <= limit)) continue;
       const double w = weightOf(fit.k), u = weightUncertainty(fit) * std::sqrt(fit.correlation);
-      const double lo = w - kProfileSigmas * u, hi = w + kProfileSigmas * u;
-      allowed.low = std::min(allowed.low, lo);
-      allowed.high = std::max(allowed.high, hi);
-      // No scintillator scatters more than max_weight of its light.
-      const double bound = std::min(std::max(std::abs(lo), std::abs(hi)), options.max_weight);
-      const double effect = bound * shadowChange(n, open, fit.sigma_px);
-      if (effect > allowed.effect)
-        allowed.effect = effect, allowed.weight_at_effect = bound,
-        allowed.sigma_at_effect_px = fit.sigma_px;
+      allowed.push_back({fit.sigma_px, w - kProfileSigmas * u, w + kProfileSigmas * u});
     }
     return allowed;
   };
@@ -313,29 +301,37 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   // wider than the narrowest width searched, which is the detector's
   // unsharpness rather than a halo. Said only when no width that explains
   // the open beam as well allows a halo that would change the shadow by
-  // more than kMaxUnseenEffect; a third of that change counts in the curve's
-  // uncertainty.
+  // more than kMaxUnseenEffect (its weight's bound, at most max_weight: no
+  // scintillator scatters more, times shadowChange at its width); a third of
+  // the largest change counts in the curve's uncertainty.
   if (best_at == 0 || weightOf(best.k) < std::max(0.003, 3.0 * weightUncertainty(best))) {
-    const Allowed allowed = allowedWeights(best);
-    const double sigma_mm = allowed.sigma_at_effect_px * binned_pitch;
-    if (!(allowed.effect <= kMaxUnseenEffect))
+    const Image smooth = gaussianBlur(n, 1.0);
+    double effect = 0.0, weight_at_effect = 0.0, sigma_mm = 0.0;
+    for (const AllowedWeights& allowed : allowedWeights(best)) {
+      const double bound =
+          std::min(std::max(std::abs(allowed.low), std::abs(allowed.high)), options.max_weight);
+      const double change = bound * shadowChange(smooth, open, allowed.sigma_px);
+      if (change > effect)
+        effect = change, weight_at_effect = bound, sigma_mm = allowed.sigma_px * binned_pitch;
+    }
+    if (!(effect <= kMaxUnseenEffect))
       fail(
           "{}: the scatter's halo does not decide the scatter: no halo fits the open beam around "
           "the part, and so does one of weight {:.3f} at sigma {:.3g} mm, which would change "
           "the part's shadow by up to {:.3f} (the open beam is too small or too far from the "
           "part to tell a halo that wide from the open level): give the job's \"scatter\"",
-          name, allowed.weight_at_effect, sigma_mm, allowed.effect);
+          name, weight_at_effect, sigma_mm, effect);
     spdlog::warn(
         "{}: no measurable scatter halo (weight {:.4f} +- {:.4f} at sigma {:.3g} mm; of the "
         "widths that fit as well, a weight of {:.4f} at {:.3g} mm would change the shadow most, "
         "by {:.4f}): scatter left out, a third of that change counted in the curve's "
         "uncertainty",
         name, weightOf(best.k), weightUncertainty(best), best.sigma_px * binned_pitch,
-        allowed.weight_at_effect, sigma_mm, allowed.effect);
+        weight_at_effect, sigma_mm, effect);
     out.column_darkening = -best.k.c / (best.k.a + best.k.b);
     out.open_level = 1.0 / (best.k.a + best.k.b);
     out.rms = best.rms;
-    out.unseen_change = allowed.effect / kProfileSigmas;
+    out.unseen_change = effect / kProfileSigmas;
     // Without a halo G(P) is 1 in the open beam: a + b is its level.
     out.primary = solvePrimary(normalized, columnAttenuation(normalized),
                                {best.k.a + best.k.b, 0.0, best.k.c}, 1.0);
@@ -375,10 +371,12 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   const double weight = weightOf(best.k);
   // Never less than the spread of the weights the grid's widths allow (a
   // flat profile the curvature at the optimum does not see).
-  const Allowed allowed = allowedWeights(best);
+  double lowest = HUGE_VAL, highest = -HUGE_VAL;
+  for (const AllowedWeights& allowed : allowedWeights(best))
+    lowest = std::min(lowest, allowed.low), highest = std::max(highest, allowed.high);
   const double u_weight = std::max(
       std::hypot(weightUncertainty(best), 0.5 * std::abs(weightOf(wider.k) - weightOf(narrower.k))),
-      (allowed.high - allowed.low) / (2.0 * kProfileSigmas));
+      (highest - lowest) / (2.0 * kProfileSigmas));
   const double sigma_mm = best.sigma_px * binned_pitch;
   if (!(u_log_sigma < 0.5) || !(u_weight < 0.5 * weight) || !(weight < 0.9))
     fail(

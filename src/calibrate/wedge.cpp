@@ -211,6 +211,10 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
 // Five times the default uncertainty of a material's transmission: a curve
 // this uncertain moves a 12 mm thickness by about 0.2 mm.
 void combineCurveUncertainty(const std::string& name, WedgeCalibration& out) {
+  // A halo too faint to measure, left out: what it could change the shadow
+  // by, as a standard uncertainty.
+  if (out.halo && out.halo->unseen_change > 0.0)
+    out.influences.push_back({"unmeasured scatter halo", 0.0, 0.0, out.halo->unseen_change});
   double variance = out.table_uncertainty * out.table_uncertainty;
   for (const CurveInfluence& influence : out.influences)
     variance += influence.change * influence.change;
@@ -369,10 +373,6 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
         {influence, value, u, largestDifference(material, moved.material, range)});
   };
   const ScatterModel& scatter = out.scatter;
-  // A halo too faint to measure, left out: what it could change the shadow
-  // by, as a standard uncertainty.
-  if (out.halo && out.halo->unseen_change > 0.0)
-    out.influences.push_back({"unmeasured scatter halo", 0.0, 0.0, out.halo->unseen_change});
   if (scatter.enabled()) {
     // The radiograph without a scatter of another weight or width: the
     // halo's removal (with its darkening) or the job's.

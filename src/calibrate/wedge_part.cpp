@@ -204,10 +204,6 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
     }
   };
   const ScatterModel& scatter = out.scatter;
-  // A halo too faint to measure, left out: what it could change the shadow
-  // by, as a standard uncertainty.
-  if (out.halo && out.halo->unseen_change > 0.0)
-    out.influences.push_back({"unmeasured scatter halo", 0.0, 0.0, out.halo->unseen_change});
   if (scatter.enabled()) {
     auto without = [&](double weight, double sigma_mm) {
       if (out.halo) return out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);

@@ -52,7 +52,9 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
                          WedgeCalibration& out);
 
 // Step 7's end, shared by both methods: the curve's standard uncertainty,
-// the table's combined with every influence's change, set on out.material;
+// the table's combined with every influence's change (and with the
+// unmeasured halo's, out.halo->unseen_change, added to out.influences),
+// set on out.material;
 // a warning naming the largest part when it exceeds kLargeCurveUncertainty.
 inline constexpr double kLargeCurveUncertainty = 0.005;
 void combineCurveUncertainty(const std::string& name, WedgeCalibration& out);

@@ -42,9 +42,11 @@ void runNormalize(const NormalizeArguments& args) {
   if (!args.dark.empty()) dark = readTiff(args.dark), flat = readTiff(args.flat);
   std::optional<PixelRect> white;
   if (!args.white.empty()) white = PixelRect{args.white[0], args.white[1], args.white[2], args.white[3]};
-  NormalizedRadiograph normalized = normalizeRadiograph(
-      readTiff(args.raw), {dark ? &*dark : nullptr, flat ? &*flat : nullptr}, white,
-      ClampPolicy::kNone, args.raw);
+  RadiographFrames frames;
+  frames.dark = dark ? &*dark : nullptr;
+  frames.flat = flat ? &*flat : nullptr;
+  NormalizedRadiograph normalized =
+      normalizeRadiograph(readTiff(args.raw), frames, white, ClampPolicy::kNone, args.raw);
   if (dark)
     spdlog::info("flat-field corrected; {} bad pixels repaired from their neighbours",
                  normalized.repaired_pixels);

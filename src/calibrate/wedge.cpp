@@ -259,9 +259,18 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   if (raw.width() != machine.columns || raw.height() != machine.rows)
     fail("{} is {}x{} pixels but the machine's detector is {}x{}", name, raw.width(), raw.height(),
          machine.columns, machine.rows);
+  RadiographFrames frames;
+  frames.dark = dark ? &*dark : nullptr;
+  frames.flat = flat ? &*flat : nullptr;
+  std::optional<Image> previous;
+  if (!spec.previous.empty()) {
+    previous = readTiff(spec.previous);
+    frames.previous = &*previous;
+    frames.previous_name = spec.previous.string();
+    frames.lag_fraction = machine.lag_fraction;
+  }
   const Image normalized =
-      normalizeRadiograph(std::move(raw), {dark ? &*dark : nullptr, flat ? &*flat : nullptr},
-                          spec.white_region, ClampPolicy::kNone, name)
+      normalizeRadiograph(std::move(raw), frames, spec.white_region, ClampPolicy::kNone, name)
           .image;
   Image image = normalized;
   out.normalized = normalized;  // what a failure below shows

@@ -5,8 +5,49 @@
 #include "xgauge/image/stats.h"
 
 #include <algorithm>
+#include <cmath>
 
 namespace xgauge {
+
+namespace {
+
+// Subtracts the lag of frames.previous (flat-field corrected as `out` was)
+// from out.image, with the stated fraction or one estimated from the pair.
+void subtractPreviousLag(NormalizedRadiograph& out, const RadiographFrames& frames,
+                         const std::optional<PixelRect>& white, const std::string& name) {
+  const std::string previous_name =
+      frames.previous_name.empty() ? "the previous frame" : frames.previous_name;
+  if (frames.previous->width() != out.image.width() ||
+      frames.previous->height() != out.image.height())
+    fail("{}: its previous frame {} is {}x{}, it is {}x{}", name, previous_name,
+         frames.previous->width(), frames.previous->height(), out.image.width(),
+         out.image.height());
+  Image previous = *frames.previous;
+  if (frames.dark) {
+    try {
+      previous = flatFieldCorrectRepairing(previous, *frames.dark, *frames.flat, nullptr);
+    } catch (const Error& e) {
+      fail("{} with its dark and flat frames: {}", previous_name, e.message());
+    }
+  }
+  LagEstimate lag;
+  if (std::isnan(frames.lag_fraction)) {
+    const double open = white ? meanOf(out.image, *white) : percentileOf(out.image, 99.5);
+    lag = estimateLag(out.image, previous, open, name);
+    if (!(lag.uncertainty <= kMaxLagUncertainty))
+      fail("{}: the lag of its previous frame {} cannot be told from the pair (fraction {:.4f}, "
+           "standard uncertainty {:.2g} over {} pixels of open beam, the previous frame's "
+           "edges {:.2f} times its noise there): state the machine's detector lag_fraction",
+           name, previous_name, lag.fraction, lag.uncertainty, lag.pixels, lag.structure);
+  } else {
+    lag.fraction = frames.lag_fraction;
+  }
+  subtractLag(out.image, previous, lag.fraction);
+  out.lag = lag;
+  if (lag.uncertainty > 0.0) out.lag_signal = std::move(previous);
+}
+
+}  // namespace
 
 NormalizedRadiograph normalizeRadiograph(Image raw, const RadiographFrames& frames,
                                          const std::optional<PixelRect>& white,
@@ -22,16 +63,18 @@ NormalizedRadiograph normalizeRadiograph(Image raw, const RadiographFrames& fram
       fail("{} with its dark and flat frames: {}", name, e.message());
     }
   }
+  if (white && (white->empty() || !out.image.rect().contains(*white)))
+    fail("{}: white region {} is not a non-empty region inside the {}x{} image", name,
+         toString(*white), out.image.width(), out.image.height());
+  if (frames.previous) subtractPreviousLag(out, frames, white, name);
   if (white) {
-    if (white->empty() || !out.image.rect().contains(*white))
-      fail("{}: white region {} is not a non-empty region inside the {}x{} image", name,
-           toString(*white), out.image.width(), out.image.height());
     out.white_mean = meanOf(out.image, *white);
     if (!(out.white_mean > 0.0))
       fail("{}: the white region {} has mean {} (must be positive: is it in the open beam?)", name,
            toString(*white), out.white_mean);
     const float scale = static_cast<float>(1.0 / out.white_mean);
     for (float& p : out.image.pixels()) p *= scale;
+    for (float& p : out.lag_signal.pixels()) p *= scale;
   }
   if (clamp == ClampPolicy::kAtOne) clampToOne(out.image);
   return out;

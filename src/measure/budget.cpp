@@ -221,6 +221,36 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
                });
   }
 
+  // The lag fraction estimated from a radiograph and its previous frame:
+  // moved by u, the radiograph loses u more of that frame's signal, and its
+  // white region as much of its own, by which it is divided again.
+  for (size_t k = 0; k < inputs.radiographs.size(); ++k) {
+    const PreparedRadiograph& radiograph = *inputs.radiographs[k];
+    if (!radiograph.lag || !(radiograph.lag->uncertainty > 0.0)) continue;
+    const double u = radiograph.lag->uncertainty;
+    const std::string name = "detector lag " + inputs.job.radiographs[k].name;
+    if (radiograph.lag_signal_levels.size() <= static_cast<size_t>(level) ||
+        radiograph.lag_signal_levels[static_cast<size_t>(level)].empty()) {
+      budget.notes.push_back(fmt::format("{}: its signal is not kept at level {}; left out", name, level));
+      continue;
+    }
+    withInputs(name, fmt::format("g = {:.5f} +- {:.2g} (estimated)", radiograph.lag->fraction, u),
+               "1", u, [&](MeasurementInputs& in, double amount) {
+                 auto moved = std::make_shared<PreparedRadiograph>(radiograph);
+                 const double step = amount * u;
+                 const auto scale = static_cast<float>(1.0 / (1.0 - step * radiograph.lag_signal_white));
+                 for (size_t l = 0; l < moved->levels.size(); ++l) {
+                   const Image& signal = radiograph.lag_signal_levels[l];
+                   if (signal.empty()) continue;
+                   auto pixels = moved->levels[l].pixels();
+                   auto lag = signal.pixels();
+                   for (size_t i = 0; i < pixels.size(); ++i)
+                     pixels[i] = (pixels[i] - static_cast<float>(step) * lag[i]) * scale;
+                 }
+                 in.radiographs[k] = std::move(moved);
+               });
+  }
+
   // The total covariance and each free dimension's budget.
   Eigen::MatrixXd total = statistical;
   for (const Influence& f : influences) total += f.delta_theta * f.delta_theta.transpose();

@@ -2,9 +2,12 @@
 
 #include "xgauge/core/config.h"
 #include "xgauge/image/pyramid.h"
+#include "xgauge/image/stats.h"
 #include "xgauge/image/tiff.h"
 
 #include <spdlog/spdlog.h>
+
+#include <set>
 
 namespace xgauge {
 
@@ -62,9 +65,23 @@ PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
   const Image& image = normalized.image;
   PreparedRadiograph out;
   out.repaired_pixels = normalized.repaired_pixels;
+  out.lag = normalized.lag;
+  if (out.lag)
+    spdlog::info("{}: lag of {} subtracted, fraction {:.5f}{}", name, spec.previous.string(),
+                 out.lag->fraction,
+                 out.lag->uncertainty > 0.0
+                     ? fmt::format(" +- {:.5f} (estimated over {} pixels of open beam)",
+                                   out.lag->uncertainty, out.lag->pixels)
+                     : std::string(" (the machine's)"));
   int count = 1;
   while ((image.width() >> count) >= 64 && (image.height() >> count) >= 64) ++count;
   out.levels = buildPyramid(image, count);
+  if (!normalized.lag_signal.empty()) {
+    out.lag_signal_white = meanOf(normalized.lag_signal, spec.white_region);
+    out.lag_signal_levels = buildPyramid(normalized.lag_signal, count);
+    for (Image& level : out.lag_signal_levels)
+      if (level.width() >= PreparedRadiograph::kLagSignalWidthPx) level = Image();
+  }
   PixelRect roi;
   if (spec.roi) {
     if (!image.rect().contains(*spec.roi))
@@ -90,19 +107,33 @@ Image readInputTiff(const std::filesystem::path& path, const Machine& machine,
 
 std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
     const MeasurementJob& job, const Machine& machine, std::map<std::string, std::string>& sha256) {
-  // Dark and flat frames are usually shared by every radiograph: read each once.
+  // Dark and flat frames are usually shared by every radiograph, and a
+  // radiograph may be another's previous frame: read each file once.
   std::map<std::filesystem::path, Image> frames;
   auto frame = [&](const std::filesystem::path& path) -> const Image& {
     auto it = frames.find(path);
     if (it == frames.end()) it = frames.emplace(path, readInputTiff(path, machine, sha256)).first;
     return it->second;
   };
+  std::set<std::filesystem::path> previous_frames;
+  for (const RadiographSpec& spec : job.radiographs)
+    if (!spec.previous.empty()) previous_frames.insert(spec.previous);
   std::vector<std::shared_ptr<const PreparedRadiograph>> out;
   for (const RadiographSpec& spec : job.radiographs) {
     RadiographFrames given;
-    if (!spec.dark.empty()) given = {&frame(spec.dark), &frame(spec.flat)};
+    if (!spec.dark.empty()) {
+      given.dark = &frame(spec.dark);
+      given.flat = &frame(spec.flat);
+    }
+    if (!spec.previous.empty()) {
+      given.previous = &frame(spec.previous);
+      given.previous_name = spec.previous.string();
+      given.lag_fraction = machine.lag_fraction;
+    }
     out.push_back(std::make_shared<const PreparedRadiograph>(
-        prepareRadiograph(readInputTiff(spec.image, machine, sha256), given, spec, machine)));
+        prepareRadiograph(previous_frames.count(spec.image) ? Image(frame(spec.image))
+                                                            : readInputTiff(spec.image, machine, sha256),
+                          given, spec, machine)));
   }
   return out;
 }

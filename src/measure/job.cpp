@@ -189,6 +189,7 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
       spec.dark = folder / r.get<std::string>("dark");
       spec.flat = folder / r.get<std::string>("flat");
     }
+    if (r.has("previous")) spec.previous = folder / r.get<std::string>("previous");
     spec.white_region = pixelRectFromConfig(r.at("white_region"));
     if (auto roi = r.find("roi")) spec.roi = pixelRectFromConfig(*roi);
     const std::string pattern = r.get<std::string>("pattern", "free");

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 
 namespace xgauge {
@@ -51,6 +52,12 @@ struct Scene {
   double lab_rate_scale = 0.0;
   // A bright disc added to radiograph a: centre (px), radius (px), height.
   std::optional<std::array<double, 4>> blob;
+  // Detector lag: radiograph b records this fraction of a's signal, and the
+  // job names a as b's previous frame (with the machine's `stated_lag` when
+  // it is not NaN).
+  double lab_lag = 0.0;
+  bool previous_frame = false;
+  double stated_lag = std::numeric_limits<double>::quiet_NaN();
   std::string bounds =
       R"({"rotation_deg": [[-5, 5], [15, 35], [-5, 5]], "centre_mm": [[-30, 30], [-30, 30], [470, 530]]})";
   std::string dimension_bounds = "{}";
@@ -75,7 +82,9 @@ class Uncertainty : public ::testing::Test {
   MeasurementResult measureScene(const Scene& s) {
     Machine lab = s.machine;
     lab.source_detector_distance_mm += s.lab_distance_offset_mm;
-    std::ofstream(dir_ / "machine.json") << s.machine.toJson().dump();
+    Machine stated = s.machine;
+    stated.lag_fraction = s.stated_lag;
+    std::ofstream(dir_ / "machine.json") << stated.toJson().dump();
     nlohmann::json material = s.material.toJson();
     std::ofstream(dir_ / "material.json") << material.dump();
     const PartModel part = PartModel::load(s.part_file);
@@ -89,6 +98,7 @@ class Uncertainty : public ::testing::Test {
     std::mt19937_64 rng(s.seed);
     std::normal_distribution<double> gauss(0.0, 1.0);
     std::vector<Vec3> world;
+    Image previous;
     for (const auto& [name, pose] : {std::pair{"a", s.a}, std::pair{"b", b}}) {
       poseVertices(pose, mesh.vertices, world);
       Image image;
@@ -100,8 +110,10 @@ class Uncertainty : public ::testing::Test {
             const auto [bx, by, radius, height] = *s.blob;
             if (std::hypot(x + 0.5 - bx, y + 0.5 - by) <= radius) v += height;
           }
+          if (std::string(name) == "b") v += s.lab_lag * static_cast<double>(previous(x, y));
           image(x, y) = static_cast<float>(v);
         }
+      previous = image;
       writeTiff(dir_ / (std::string(name) + ".tif"), image, TiffFormat::kFloat32);
     }
     std::ofstream(dir_ / "job.json") << R"({
@@ -112,7 +124,9 @@ class Uncertainty : public ::testing::Test {
       "radiographs": [
         {"name": "a", "image": "a.tif", "white_region": [2, 2, 20, 20], "pattern": "free"},
         {"name": "b", "image": "b.tif", "white_region": [2, 2, 20, 20], "pattern": "translated",
-         "reference": "a", "distance_mm": 30.0, "distance_uncertainty_mm": 0.01}],
+         "reference": "a", "distance_mm": 30.0, "distance_uncertainty_mm": 0.01)" +
+                                            (s.previous_frame ? R"(, "previous": "a.tif")" : "") +
+                                            R"(}],
       "pose_bounds": )" + s.bounds + R"(})";
     inputs_ = std::make_unique<MeasurementInputs>(loadMeasurementInputs(dir_ / "job.json"));
     model_ = std::make_unique<ForwardModel>(*inputs_);
@@ -278,6 +292,46 @@ TEST_F(Uncertainty, AnInfluenceMovesTheResultAsItsReSolveSays) {
   // it hardly: the budget must tell them apart.
   EXPECT_GT(component(nominal, "size_z", "material").contribution,
             5.0 * component(nominal, "size_y", "material").contribution);
+}
+
+// Radiograph b records 1 % of a's signal (a is its previous frame). Named
+// as b's previous frame, a's lag is estimated (within three standard
+// uncertainties of 1 %), subtracted, and its uncertainty enters the budget
+// as "detector lag b", whose sensitivity predicts how far the result moves
+// when the machine states a fraction off the estimate by 10 u.
+TEST_F(Uncertainty, TheLagOfThePreviousFrameIsEstimatedSubtractedAndBudgeted) {
+  Scene lagging;
+  lagging.noise = 0.003;
+  lagging.lab_lag = 0.01;
+  const MeasurementResult ignored = measureScene(lagging);
+  lagging.previous_frame = true;
+  const MeasurementResult corrected = measureScene(lagging);
+  ASSERT_TRUE(inputs_->radiographs[1]->lag.has_value());
+  EXPECT_FALSE(inputs_->radiographs[0]->lag.has_value());
+  const LagEstimate lag = *inputs_->radiographs[1]->lag;
+  EXPECT_GT(lag.uncertainty, 0.0);
+  EXPECT_NEAR(lag.fraction, 0.01, 3.0 * lag.uncertainty);
+  double worst_ignored = 0.0, worst_corrected = 0.0;
+  for (size_t k = 0; k < corrected.dimensions.size(); ++k) {
+    const std::string& name = corrected.dimensions[k].name;
+    worst_ignored = std::max(worst_ignored, std::abs(ignored.dimensions[k].value - lagging.truth.at(name)));
+    worst_corrected =
+        std::max(worst_corrected, std::abs(corrected.dimensions[k].value - lagging.truth.at(name)));
+  }
+  EXPECT_LT(worst_corrected, 0.5 * worst_ignored) << worst_corrected << " against " << worst_ignored;
+
+  lagging.stated_lag = lag.fraction + 3.0 * lag.uncertainty;
+  const MeasurementResult stated = measureScene(lagging);
+  ASSERT_TRUE(inputs_->radiographs[1]->lag.has_value());
+  EXPECT_EQ(inputs_->radiographs[1]->lag->uncertainty, 0.0);  // the machine's: not budgeted
+  for (size_t k = 0; k < corrected.dimensions.size(); ++k) {
+    const std::string& name = corrected.dimensions[k].name;
+    const UncertaintyComponent& c = component(corrected, name, "detector lag b");
+    EXPECT_EQ(c.standard_uncertainty, lag.uncertainty);
+    const double predicted = 3.0 * c.sensitivity * lag.uncertainty;
+    const double actual = stated.dimensions[k].value - corrected.dimensions[k].value;
+    EXPECT_NEAR(actual, predicted, 0.2 * std::abs(predicted) + 1e-3) << name;
+  }
 }
 
 TEST_F(Uncertainty, TwoEdgesThatMoveWithThePartAreReportedAsTheirSum) {

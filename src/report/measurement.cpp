@@ -121,6 +121,16 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                            {"roi", {roi.x, roi.y, roi.width, roi.height}},
                            {"repaired_pixels", rad.repaired_pixels},
                            {"image", spec.image.string()}});
+    if (rad.lag) {
+      nlohmann::json lag = {{"previous", spec.previous.string()},
+                            {"fraction", rad.lag->fraction},
+                            {"source", rad.lag->uncertainty > 0.0 ? "estimated" : "machine"}};
+      if (rad.lag->uncertainty > 0.0) {
+        lag["uncertainty"] = rad.lag->uncertainty;
+        lag["open_beam_pixels"] = rad.lag->pixels;
+      }
+      radiographs.back()["lag"] = std::move(lag);
+    }
   }
   nlohmann::json stages = nlohmann::json::array();
   for (const auto& s : result.stages)

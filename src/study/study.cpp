@@ -177,6 +177,20 @@ nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& trut
                         const fs::path& machine_file, const fs::path& material_file) {
   nlohmann::json job = settings;
   job.erase("material");
+  // With "previous_frames", each shot's lag is subtracted with the shot the
+  // dataset lists before it as its previous frame (the dataset lists its
+  // shots in the order they were exposed; the first has none).
+  bool previous_frames = false;
+  if (const auto it = settings.find("previous_frames"); it != settings.end()) {
+    if (!it->is_boolean()) fail("study settings: /previous_frames: expected true or false");
+    previous_frames = it->get<bool>();
+    job.erase("previous_frames");
+  }
+  auto previousOf = [&](const std::string& name) -> const TruthShot* {
+    for (size_t k = 1; k < truth.shots.size(); ++k)
+      if (truth.shots[k].name == name) return &truth.shots[k - 1];
+    return nullptr;
+  };
   job["description"] = "study run " + id;
   job["part"] = fs::absolute(truth.part_file).string();
   job["machine"] = fs::absolute(machine_file).string();
@@ -191,6 +205,8 @@ nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& trut
                         {"dark", fs::absolute(truth.dark).string()},
                         {"flat", fs::absolute(truth.flat).string()},
                         {"white_region", {w.x, w.y, w.width, w.height}}};
+    if (const TruthShot* previous = previous_frames ? previousOf(s.name) : nullptr)
+      r["previous"] = fs::absolute(previous->file).string();
     if (i == 0) {
       r["pattern"] = "free";
     } else if (s.pattern == "rotated") {
@@ -267,7 +283,17 @@ std::shared_ptr<const PreparedRadiograph> PreparedShots::get(const RadiographSpe
       if (!dark_)
         dark_ = readInputTiff(spec.dark, machine_, sha256_),
         flat_ = readInputTiff(spec.flat, machine_, sha256_);
-      frames = {&*dark_, &*flat_};
+      frames.dark = &*dark_;
+      frames.flat = &*flat_;
+    }
+    // A shot's previous frame (the one before it in the dataset's listing),
+    // read raw for its lag.
+    std::optional<Image> previous;
+    if (!spec.previous.empty()) {
+      previous = readInputTiff(spec.previous, machine_, sha256_);
+      frames.previous = &*previous;
+      frames.previous_name = spec.previous.string();
+      frames.lag_fraction = machine_.lag_fraction;
     }
     it = prepared_
              .emplace(spec.image.string(),

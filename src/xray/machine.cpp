@@ -38,6 +38,7 @@ Machine Machine::fromConfig(const ConfigNode& node) {
     m.cx_px = 0.5 * m.columns;
     m.cy_px = 0.5 * m.rows;
   }
+  if (auto lag = detector.find("lag_fraction")) m.lag_fraction = lag->number(0.0, 0.5);
   m.description = node.get<std::string>("description", "");
   if (auto u = node.find("uncertainty")) {
     if (auto d = u->find("source_detector_distance_mm"))
@@ -75,6 +76,7 @@ nlohmann::json Machine::toJson() const {
       {"uncertainty",
        {{"source_detector_distance_mm", source_detector_distance_uncertainty_mm},
         {"pixel_pitch_relative", pixel_pitch_uncertainty_relative}}}};
+  if (!std::isnan(lag_fraction)) out["detector"]["lag_fraction"] = lag_fraction;
   if (!description.empty()) out["description"] = description;
   return out;
 }

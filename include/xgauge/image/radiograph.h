@@ -3,14 +3,17 @@
 // used by `xgauge normalize`, the measurement and both calibrations.
 //
 //   raw --(dark, flat: flat-field correction, bad pixels repaired)-->
+//       --(the previous frame's lag subtracted, when it is given: image/lag.h)-->
 //       --(divided by the mean of an open-beam white region, thesis eq. 3.9,
 //         docs/method.md)-->
 //       --(clamped to 1, or not)--> normalized
 #pragma once
 
 #include "xgauge/image/image.h"
+#include "xgauge/image/lag.h"
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <string>
 
@@ -27,20 +30,37 @@ enum class ClampPolicy {
 struct RadiographFrames {
   const Image* dark = nullptr;  // both or neither
   const Image* flat = nullptr;
+  // The raw frame exposed just before this one (same dark and flat), whose
+  // lag is subtracted; null: none. With it, `lag_fraction` is the detector's
+  // when known (NaN: estimated from the pair, image/lag.h).
+  const Image* previous = nullptr;
+  std::string previous_name;  // its file, for messages
+  double lag_fraction = std::numeric_limits<double>::quiet_NaN();
 };
 
 struct NormalizedRadiograph {
   Image image;
   int64_t repaired_pixels = 0;  // bad pixels repaired by the flat-field correction
   double white_mean = 1.0;      // the white region's mean before dividing (1 without one)
+  // The lag subtracted (frames.previous given): the fraction used, with its
+  // standard uncertainty when estimated from the pair (0 when stated).
+  std::optional<LagEstimate> lag;
+  // When the fraction was estimated: the previous frame as subtracted, per
+  // unit fraction (flat-field corrected and divided by the white mean, as
+  // `image`), for the budget's component of the estimate's uncertainty.
+  Image lag_signal;
 };
 
 // Flat-field corrects `raw` with `frames` when given (bad pixels, where
-// flat <= dark, are repaired from their neighbours), then divides by the mean
+// flat <= dark, are repaired from their neighbours), subtracts the previous
+// frame's lag when frames.previous is given (corrected the same way), then
+// divides by the mean
 // over `white` when given, then applies `clamp`. `name` (the raw image's
 // file) names the image in errors. Throws Error naming the image when the
 // frames' sizes differ from it, when the white region lies outside it, or
-// when the white region's mean is not positive.
+// when the white region's mean is not positive, and when the lag is to be
+// estimated but the pair cannot tell it (uncertainty above
+// kMaxLagUncertainty: the machine must state it).
 NormalizedRadiograph normalizeRadiograph(Image raw, const RadiographFrames& frames,
                                          const std::optional<PixelRect>& white,
                                          ClampPolicy clamp, const std::string& name);

@@ -27,6 +27,13 @@ struct PreparedRadiograph {
   std::vector<Image> levels;    // 0 = full size, halving down to about 64 px
   std::vector<PixelRect> rois;  // the region compared, per level
   int64_t repaired_pixels = 0;  // bad pixels repaired by the flat-field correction
+  std::optional<LagEstimate> lag;  // the previous frame's lag subtracted, if any
+  // With an estimated lag: per level, the lag signal subtracted per unit
+  // fraction (normalized like `levels`), kept only on levels narrower than
+  // kLagSignalWidthPx (the budget re-solves there); empty elsewhere.
+  std::vector<Image> lag_signal_levels;
+  double lag_signal_white = 0.0;  // its mean over the white region (about 1)
+  static constexpr int kLagSignalWidthPx = 2048;
 };
 
 // Normalizes `raw` (named `spec.image` in errors) and builds its pyramid and

@@ -77,6 +77,9 @@ inline constexpr double kDefaultTranslationUncertaintyMm = 0.005;
 struct RadiographSpec {
   std::string name;
   std::filesystem::path image, dark, flat;  // dark/flat empty when not given
+  // The raw frame the detector exposed just before this one, whose lag is
+  // subtracted (image/lag.h); empty when not given.
+  std::filesystem::path previous;
   PixelRect white_region;
   std::optional<PixelRect> roi;
   Acquisition pattern = Acquisition::kFree;

@@ -13,6 +13,10 @@
 //   detector.columns, detector.rows  detector size in pixels (1..65536)
 //   detector.pixel_pitch_mm          [pitch_u, pitch_v] in mm, > 0
 //   detector.principal_point_px      [cx, cy]; default: the detector centre
+//   detector.lag_fraction            optional, 0..0.5: the fraction of a frame's
+//                                    signal the next frame records (image/lag.h);
+//                                    absent: estimated where a job names the
+//                                    previous frame
 //   description                      optional free text
 //
 // Pose JSON keys (a pose maps part to world coordinates, x_w = R x_p + t):
@@ -28,6 +32,7 @@
 #include "xgauge/image/image.h"
 
 #include <filesystem>
+#include <limits>
 
 namespace xgauge {
 
@@ -40,6 +45,7 @@ struct Machine {
   double cx_px = 512.0;
   double cy_px = 512.0;
   std::string description;
+  double lag_fraction = std::numeric_limits<double>::quiet_NaN();  // NaN: not stated
   // Standard uncertainties a lab states for its machine (optional key
   // "uncertainty"; docs/formats.md): they enter every measurement's budget.
   double source_detector_distance_uncertainty_mm = kDefaultDistanceUncertaintyMm;

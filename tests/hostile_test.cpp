@@ -7,6 +7,8 @@
 #include "hand_made_tiff.h"
 #include "xgauge/image/tiff.h"
 
+#include <nlohmann/json.hpp>
+
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <signal.h>
@@ -229,6 +231,29 @@ TEST_F(Hostile, StudyRunsTakeTheScatterTheirMaterialCarries) {
   const std::string job = readText(out("study/runs/t00-t01/job.json"));
   EXPECT_NE(job.find("\"sigma_mm\": 12.5"), std::string::npos) << job;
   EXPECT_NE(readText(out("study/material.json")).find("\"weight\": 0.07"), std::string::npos);
+}
+
+// With "previous_frames", each shot but the first names the one exposed
+// before it, and its lag (1 % in this lab) is estimated and subtracted.
+TEST_F(Hostile, AStudyWithPreviousFramesSubtractsEachShotsLag) {
+  write("machine.json", kTinyMachine);
+  std::string recipe = tinyRecipe();
+  const std::string noise = R"("photons_per_open_pixel": 20000)";
+  recipe.replace(recipe.find(noise), noise.size(), noise + R"(, "ghost_fraction": 0.01)");
+  ASSERT_EQ(run("simulate " + write("recipe.json", recipe) + " -o " + out("ds") + " -q").status, 0);
+  std::string settings = tinySettings();
+  settings.insert(1, R"("previous_frames": true, )");
+  const CommandResult r = run("study " + out("ds") + " -o " + out("study") + " -q --limit 1 -s " +
+                              write("settings.json", settings));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto job = nlohmann::json::parse(readText(out("study/runs/t00-t01/job.json")));
+  EXPECT_FALSE(job["radiographs"][0].contains("previous"));
+  EXPECT_EQ(fs::path(job["radiographs"][1]["previous"].get<std::string>()).filename(), "t00.tif");
+  const auto result = nlohmann::json::parse(readText(out("study/runs/t00-t01/result.json")));
+  const auto& lag = result["radiographs"][1]["lag"];
+  EXPECT_EQ(lag["source"], "estimated");
+  EXPECT_NEAR(lag["fraction"].get<double>(), 0.01, 3.0 * lag["uncertainty"].get<double>()) << lag;
+  EXPECT_FALSE(result["radiographs"][0].contains("lag"));
 }
 
 // Item 5: a study run again with other settings used to return the old

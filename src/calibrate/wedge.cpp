@@ -139,6 +139,7 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
     job.radiograph.dark = folder / r.get<std::string>("dark");
     job.radiograph.flat = folder / r.get<std::string>("flat");
   }
+  if (r.has("previous")) job.radiograph.previous = folder / r.get<std::string>("previous");
   job.radiograph.white_region = pixelRectFromConfig(r.at("white_region"));
   const ConfigNode wedge = root.at("wedge");
   if (auto model = wedge.find("model")) {
@@ -269,9 +270,12 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
     frames.previous_name = spec.previous.string();
     frames.lag_fraction = machine.lag_fraction;
   }
-  const Image normalized =
-      normalizeRadiograph(std::move(raw), frames, spec.white_region, ClampPolicy::kNone, name)
-          .image;
+  NormalizedRadiograph prepared =
+      normalizeRadiograph(std::move(raw), frames, spec.white_region, ClampPolicy::kNone, name);
+  if (prepared.lag)
+    spdlog::info("{}: lag of {} subtracted, {}", name, spec.previous.string(),
+                 describeLag(*prepared.lag));
+  const Image normalized = std::move(prepared.image);
   Image image = normalized;
   out.normalized = normalized;  // what a failure below shows
   std::optional<HaloFit> found;

@@ -3,6 +3,8 @@
 #include "xgauge/core/error.h"
 #include "xgauge/image/blur.h"
 
+#include <spdlog/spdlog.h>
+
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -23,7 +25,7 @@ constexpr double kOuterSigmaPx = 4.0;
 // that far around its shadow, the current image is not open beam.
 constexpr int kMarginPx = 16;
 constexpr double kShadowLevel = 0.95;  // of the open level, smoothed over 2 px
-constexpr int kTilePx = 32;
+constexpr int kTilePx = 16;
 
 // The previous frame's level for the noise model, smoothed enough that its
 // own noise does not matter.
@@ -117,6 +119,11 @@ NoiseModel fitNoiseModel(const Image& dc, const Image& dp, const Image& level,
   for (int y = 0; y < h; ++y)
     for (int x = 0; x < w; ++x)
       if (open(x, y)) model.square_sum += model.square(static_cast<double>(level(x, y)));
+  spdlog::debug(
+      "lag: noise model over {} pixels without the previous frame's edges (mean level {:.3f}): "
+      "dc*dp = {:.3g} + {:.3g} l + {:.3g} l^2, dp^2 = {:.3g} + {:.3g} l + {:.3g} l^2",
+      moments[0], moments[1] / moments[0], model.cross_coef[0], model.cross_coef[1],
+      model.cross_coef[2], model.square_coef[0], model.square_coef[1], model.square_coef[2]);
   model.valid = true;
   return model;
 }
@@ -221,6 +228,8 @@ LagEstimate estimateLag(const Image& current, const Image& previous, double open
     return s > 0.0 ? c / s : std::numeric_limits<double>::quiet_NaN();
   };
   out.fraction = slope(cross, square);
+  spdlog::debug("lag: {} open pixels in {} tiles, sum dc*dp {:.4g}, sum dp^2 {:.4g} (noise taken off)",
+                count, used.size(), cross, square);
   if (!std::isfinite(out.fraction) || used.size() < 2) {
     out.fraction = 0.0;
     out.uncertainty = std::numeric_limits<double>::infinity();
@@ -247,6 +256,13 @@ LagEstimate estimateLag(const Image& current, const Image& previous, double open
   const double t = static_cast<double>(leave_one_out.size());
   out.uncertainty = std::sqrt((t - 1.0) / t * spread);
   return out;
+}
+
+std::string describeLag(const LagEstimate& lag) {
+  if (lag.uncertainty > 0.0)
+    return fmt::format("fraction {:.5f} +- {:.5f} (estimated over {} pixels of open beam)",
+                       lag.fraction, lag.uncertainty, lag.pixels);
+  return fmt::format("fraction {:.5f} (the machine's)", lag.fraction);
 }
 
 void subtractLag(Image& current, const Image& previous, double fraction) {

@@ -67,12 +67,8 @@ PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
   out.repaired_pixels = normalized.repaired_pixels;
   out.lag = normalized.lag;
   if (out.lag)
-    spdlog::info("{}: lag of {} subtracted, fraction {:.5f}{}", name, spec.previous.string(),
-                 out.lag->fraction,
-                 out.lag->uncertainty > 0.0
-                     ? fmt::format(" +- {:.5f} (estimated over {} pixels of open beam)",
-                                   out.lag->uncertainty, out.lag->pixels)
-                     : std::string(" (the machine's)"));
+    spdlog::info("{}: lag of {} subtracted, {}", name, spec.previous.string(),
+                 describeLag(*out.lag));
   int count = 1;
   while ((image.width() >> count) >= 64 && (image.height() >> count) >= 64) ++count;
   out.levels = buildPyramid(image, count);

@@ -72,7 +72,7 @@ std::string runFingerprint(const nlohmann::json& job, const DatasetTruth& truth,
   text += fmt::format("images {}\n", images);
   text += "part " + digests.of(truth.part_file) + "\n";
   for (const auto& radiograph : job.at("radiographs"))
-    for (const char* key : {"image", "dark", "flat"})
+    for (const char* key : {"image", "dark", "flat", "previous"})
       if (radiograph.contains(key))
         text += fmt::format("{} {}\n", key, digests.of(radiograph.at(key).get<std::string>()));
   return sha256Hex(text);

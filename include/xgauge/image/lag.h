@@ -51,12 +51,17 @@ struct LagEstimate {
 LagEstimate estimateLag(const Image& current, const Image& previous, double open_level,
                         const std::string& name);
 
+// "fraction F +- U (estimated over N pixels of open beam)", or
+// "fraction F (the machine's)" when stated (uncertainty 0).
+std::string describeLag(const LagEstimate& lag);
+
 // current -= fraction * previous, pixel by pixel (sizes must match).
 void subtractLag(Image& current, const Image& previous, double fraction);
 
 // The largest standard uncertainty of an estimated lag fraction that a
-// measurement accepts; beyond it the pair cannot tell the lag and the
-// machine must state it.
-inline constexpr double kMaxLagUncertainty = 0.001;
+// measurement accepts: panels lag by 0.001 to 0.03, so an estimate looser
+// than this tells nothing, and the machine must state the fraction. Below
+// it the estimate's uncertainty enters the measurement's budget.
+inline constexpr double kMaxLagUncertainty = 0.005;
 
 }  // namespace xgauge

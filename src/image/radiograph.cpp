@@ -36,8 +36,8 @@ void subtractPreviousLag(NormalizedRadiograph& out, const RadiographFrames& fram
     lag = estimateLag(out.image, previous, open, name);
     if (!(lag.uncertainty <= kMaxLagUncertainty))
       fail("{}: the lag of its previous frame {} cannot be told from the pair (fraction {:.4f}, "
-           "standard uncertainty {:.2g} over {} pixels of open beam, the previous frame's "
-           "edges {:.2f} times its noise there): state the machine's detector lag_fraction",
+           "standard uncertainty {:.2g} over {} pixels of open beam near the previous frame's "
+           "edges, whose band-pass is {:.2f} times its noise there): state the machine's detector lag_fraction",
            name, previous_name, lag.fraction, lag.uncertainty, lag.pixels, lag.structure);
   } else {
     lag.fraction = frames.lag_fraction;

@@ -32,11 +32,11 @@ namespace xgauge {
 struct LagEstimate {
   double fraction = 0.0;     // g
   double uncertainty = 0.0;  // its standard uncertainty (jackknife over tiles)
-  int64_t pixels = 0;        // pixels of open beam the regression used
+  int64_t pixels = 0;        // pixels the regression used: open beam near the previous edges
   int tiles = 0;             // tiles among which they fall
   // The previous frame's structure there, against its noise: the sum of
   // squares of its band-pass over those pixels divided by what noise alone
-  // would give (1: nothing but noise, no edge of the previous shot seen).
+  // would give (1: nothing but noise).
   double structure = 0.0;
 };
 

@@ -3,6 +3,7 @@
 // no output file.
 #include "cli_support.h"
 
+#include "xgauge/image/blur.h"
 #include "xgauge/image/tiff.h"
 
 #include <fmt/format.h>
@@ -373,6 +374,45 @@ TEST_F(CalibrateWedge, WritesTheMaterialFiguresAndPlot) {
   EXPECT_GT(unmeasured, 0.0) << uncertainty.dump();
   EXPECT_LE(unmeasured, 0.0025);
   EXPECT_GE(uncertainty.at("transmission").get<double>(), unmeasured);
+}
+
+// With a scatter removed, material.json says how the curve moves with it:
+// the curves calibrated with the weight and the width moved by their u
+// differ from the curve by the influences calibration.json lists, and the
+// uncertainty besides them completes the curve's.
+TEST_F(CalibrateWedge, TheMaterialSaysHowItsCurveMovesWithTheScatter) {
+  writeTiff(out("scattered.tif"), scatterBlur(ramp(40, 260), 0.08, 20.0), TiffFormat::kFloat32);
+  const CommandResult r =
+      calibrate(job(R"(, "scatter": {"weight": 0.08, "sigma_mm": 20})", "scattered.tif"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const nlohmann::json figures = nlohmann::json::parse(std::ifstream(out("cal") + "/calibration.json"));
+  const nlohmann::json material = nlohmann::json::parse(std::ifstream(out("cal") + "/material.json"));
+  const nlohmann::json& moves = material.at("scatter").at("curve_moves");
+  auto curve = [](const nlohmann::json& terms, double x) {
+    double sum = 0.0;
+    for (const auto& t : terms) sum += t.at("weight").get<double>() * std::exp(-t.at("mu_per_mm").get<double>() * x);
+    return sum;
+  };
+  const double x_max = material.at("calibrated_range_mm")[1].get<double>();
+  double scatter_squares = 0.0;
+  for (const auto& influence : figures.at("uncertainty").at("influences")) {
+    const std::string name = influence.at("name");
+    const double change = influence.at("curve_change").get<double>();
+    if (name != "scatter weight" && name != "scatter sigma_mm") continue;
+    scatter_squares += change * change;
+    const nlohmann::json& moved = moves.at(name == "scatter weight" ? "weight_plus_u" : "sigma_mm_plus_u");
+    double largest = 0.0;
+    for (int i = 0; i <= 2000; ++i) {
+      const double x = x_max * i / 2000.0;
+      largest = std::max(largest, std::abs(curve(moved.at("terms"), x) - curve(material.at("terms"), x)));
+    }
+    EXPECT_NEAR(largest, change, 0.02 * change + 1e-6) << name;
+    EXPECT_GT(change, 1e-4) << name;
+  }
+  const double u = material.at("uncertainty").at("transmission").get<double>();
+  const double besides = moves.at("transmission_uncertainty_besides").get<double>();
+  EXPECT_NEAR(besides * besides + scatter_squares, u * u, 1e-9);
+  EXPECT_LT(besides, u);
 }
 
 TEST_F(CalibrateWedge, NoRamp) {

@@ -218,7 +218,9 @@ TEST_F(Hostile, PoseBoundsBehindTheSourceAreNamedAndLeaveNoFolder) {
 }
 
 // A material.json from a wedge calibration carries the detector's scatter;
-// a study whose settings give none measures every run with it and records it.
+// a study whose settings give none measures every run with it (each run's
+// job.json names the study's material.json, which carries it, so the job
+// measured by hand takes it too) and records it.
 TEST_F(Hostile, StudyRunsTakeTheScatterTheirMaterialCarries) {
   simulateTinyLab();
   write("material.json", R"({"model": "exponential_sum", "terms": [{"weight": 1, "mu_per_mm": 0.05}],
@@ -229,8 +231,16 @@ TEST_F(Hostile, StudyRunsTakeTheScatterTheirMaterialCarries) {
                               write("settings.json", settings));
   ASSERT_EQ(r.status, 0) << r.output;
   const std::string job = readText(out("study/runs/t00-t01/job.json"));
-  EXPECT_NE(job.find("\"sigma_mm\": 12.5"), std::string::npos) << job;
+  EXPECT_EQ(job.find("scatter"), std::string::npos) << job;
   EXPECT_NE(readText(out("study/material.json")).find("\"weight\": 0.07"), std::string::npos);
+  const std::string result = readText(out("study/runs/t00-t01/result.json"));
+  EXPECT_NE(result.find("w = 0.07 +- 0.0035"), std::string::npos) << result;
+  // The same job measured by hand gives the same dimensions.
+  const CommandResult again = run("measure " + out("study/runs/t00-t01/job.json") + " -q -o " + out("again"));
+  ASSERT_EQ(again.status, 0) << again.output;
+  const auto a = nlohmann::json::parse(result), b = nlohmann::json::parse(readText(out("again/result.json")));
+  for (size_t k = 0; k < a["dimensions"].size(); ++k)
+    EXPECT_NEAR(a["dimensions"][k]["value_mm"].get<double>(), b["dimensions"][k]["value_mm"].get<double>(), 1e-9);
 }
 
 // With "previous_frames", each shot but the first names the one exposed

@@ -215,7 +215,8 @@ void combineCurveUncertainty(const std::string& name, WedgeCalibration& out) {
   // A halo too faint to measure, left out: what it could change the shadow
   // by, as a standard uncertainty.
   if (out.halo && out.halo->unseen_change > 0.0)
-    out.influences.push_back({"unmeasured scatter halo", 0.0, 0.0, out.halo->unseen_change});
+    out.influences.push_back(
+        {"unmeasured scatter halo", 0.0, 0.0, out.halo->unseen_change, std::nullopt});
   double variance = out.table_uncertainty * out.table_uncertainty;
   for (const CurveInfluence& influence : out.influences)
     variance += influence.change * influence.change;
@@ -383,7 +384,7 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
            influence, u, e.message());
     }
     out.influences.push_back(
-        {influence, value, u, largestDifference(material, moved.material, range)});
+        {influence, value, u, largestDifference(material, moved.material, range), moved.material});
   };
   const ScatterModel& scatter = out.scatter;
   if (scatter.enabled()) {
@@ -400,10 +401,10 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
       }
       return out.turned ? transposed(removed) : removed;
     };
-    propagate("scatter weight", scatter.weight, scatter.weight_uncertainty,
+    propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
               without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),
               job.max_thickness_mm, job.ramp_length_mm);
-    propagate("scatter sigma_mm", scatter.sigma_mm, scatter.sigma_uncertainty_mm,
+    propagate(kScatterWidthInfluence, scatter.sigma_mm, scatter.sigma_uncertainty_mm,
               without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
               job.max_thickness_mm, job.ramp_length_mm);
   }

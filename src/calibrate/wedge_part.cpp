@@ -195,9 +195,9 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
           .noise = table.noise,
           .rate_floor_per_mm = job.rate_floor ? job.rate_floor->per_mm : 0.0};
       const CurveFit fit = fitCurve(table.path_mm, table.transmission, options, name);
+      const ExponentialSum curve(fit.best().fitted);
       out.influences.push_back(
-          {influence, value, u,
-           largestDifference(out.material, ExponentialSum(fit.best().fitted), out.x_max_mm)});
+          {influence, value, u, largestDifference(out.material, curve, out.x_max_mm), curve});
     } catch (const Error& e) {
       fail("the calibration does not survive its {} moved by its standard uncertainty ({}): {}",
            influence, u, e.message());
@@ -211,12 +211,12 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
       moved.weight = weight, moved.sigma_mm = sigma_mm;
       return moved.remove(normalized, machine.pitch_u_mm, job.radiograph.white_region);
     };
-    propagate("scatter weight", scatter.weight, scatter.weight_uncertainty,
+    propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
               knownWedgeInputs(
                   job, without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),
                   job.caliper),
               theta);
-    propagate("scatter sigma_mm", scatter.sigma_mm, scatter.sigma_uncertainty_mm,
+    propagate(kScatterWidthInfluence, scatter.sigma_mm, scatter.sigma_uncertainty_mm,
               knownWedgeInputs(
                   job, without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
                   job.caliper),

@@ -181,8 +181,8 @@ ImageT<uint8_t> openBeamMask(const Image& current, double open_level) {
 
 }  // namespace
 
-LagEstimate estimateLag(const Image& current_full, const Image& previous_full,
-                        double open_level, const std::string& name) {
+LagEstimate estimateLag(const Image& current_full, const Image& previous_full, double open_level,
+                        const std::string& name) {
   if (current_full.width() != previous_full.width() ||
       current_full.height() != previous_full.height())
     fail("{}: the previous frame is {}x{} but this one is {}x{}", name, previous_full.width(),
@@ -252,8 +252,10 @@ LagEstimate estimateLag(const Image& current_full, const Image& previous_full,
     return s > 0.0 ? c / s : std::numeric_limits<double>::quiet_NaN();
   };
   out.fraction = slope(cross, square);
-  spdlog::debug("lag: {} pixels near the previous frame's edges in {} tiles, sum dc*dp {:.4g}, sum dp^2 {:.4g} (noise taken off)",
-                count, used.size(), cross, square);
+  spdlog::debug(
+      "lag: {} pixels near the previous frame's edges in {} tiles, sum dc*dp {:.4g}, sum dp^2 "
+      "{:.4g} (noise taken off)",
+      count, used.size(), cross, square);
   if (!std::isfinite(out.fraction) || used.size() < 2) {
     out.fraction = 0.0;
     out.uncertainty = std::numeric_limits<double>::infinity();
@@ -284,9 +286,10 @@ LagEstimate estimateLag(const Image& current_full, const Image& previous_full,
 
 std::string describeLag(const LagEstimate& lag) {
   if (lag.uncertainty > 0.0)
-    return fmt::format("fraction {:.5f} +- {:.5f} (estimated over {} pixels of open beam near "
-                       "the previous frame's edges)",
-                       lag.fraction, lag.uncertainty, lag.pixels);
+    return fmt::format(
+        "fraction {:.5f} +- {:.5f} (estimated over {} pixels of open beam near "
+        "the previous frame's edges)",
+        lag.fraction, lag.uncertainty, lag.pixels);
   return fmt::format("fraction {:.5f} (the machine's)", lag.fraction);
 }
 

@@ -109,12 +109,13 @@ TEST(Lag, TheEstimateCoversTheTrueFractionOverPanelsShiftsAndLags) {
       {512, 140, 180, 0.003, {10000.0, 4, 0.2}, kMaxLagUncertainty},
   };
   for (const Case& c : cases) {
-    SCOPED_TRACE(::testing::Message() << c.size << " px, slab at " << c.previous_left << " then "
-                                      << c.current_left << ", lag " << c.lag << ", photons "
-                                      << c.panel.photons);
+    SCOPED_TRACE(::testing::Message()
+                 << c.size << " px, slab at " << c.previous_left << " then " << c.current_left
+                 << ", lag " << c.lag << ", photons " << c.panel.photons);
     const Pair pair = exposePair(c.size, c.previous_left, c.current_left, c.lag, c.panel, 7);
     const LagEstimate e = estimateLag(pair.current, pair.previous, 1.0, "shot.tif");
-    EXPECT_LE(std::abs(e.fraction - c.lag), 3.0 * e.uncertainty) << e.fraction << " +- " << e.uncertainty;
+    EXPECT_LE(std::abs(e.fraction - c.lag), 3.0 * e.uncertainty)
+        << e.fraction << " +- " << e.uncertainty;
     EXPECT_LE(e.uncertainty, c.max_uncertainty);
     EXPECT_GT(e.structure, 1.05);
   }

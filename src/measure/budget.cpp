@@ -160,8 +160,13 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   } else {
     // The scale of the rates that moves the curve by u at the worst path:
     // dI/d(scale) = -x sum a_k mu_k exp(-mu_k x).
+    // When the scatter comes from the material's calibration and the file
+    // says how the curve moves with it, the scatter's share of the curve's
+    // uncertainty goes with the scatter's components below.
     const ExponentialSum& material = model.material();
-    const double u = material.transmissionUncertainty();
+    const double u = model.inputs().scatter_curves
+                         ? model.inputs().scatter_curves->transmission_uncertainty_besides
+                         : material.transmissionUncertainty();
     const double scale = material.rateScaleFor(u, model.partSizeMm());
     if (scale > 0.0) {
       ForwardModel moved(inputs, material.withScaledRates(scale));
@@ -170,28 +175,40 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
           {"material", fmt::format("transmission curve, u = {:.2g}", u), "transmission", u, {}});
     }
   }
-  // change(inputs, amount) moves the influence by amount * u.
+  // change(inputs, amount) moves the influence by amount * u; `curve`, when
+  // given, is the material curve that goes with it.
   auto withInputs = [&](const std::string& name, const std::string& quantity,
-                        const std::string& unit, double u, auto change) {
+                        const std::string& unit, double u, auto change,
+                        const std::optional<ExponentialSum>& curve = std::nullopt) {
     if (!(u > 0.0) || !propagate) return;
     MeasurementInputs moved = inputs;  // the model below keeps a reference to it
     change(moved, 1.0);
-    ForwardModel moved_model(moved, model.material());
+    ForwardModel moved_model(moved, curve ? *curve : model.material());
     resolve(moved_model, {name, quantity, unit, u, {}});
   };
   const ScatterModel& scatter = inputs.job.scatter;
   if (scatter.enabled()) {
-    withInputs("scatter weight",
-               fmt::format("w = {:.4g} +- {:.2g}", scatter.weight, scatter.weight_uncertainty), "1",
-               scatter.weight_uncertainty, [&](MeasurementInputs& in, double amount) {
-                 in.job.scatter.weight += amount * scatter.weight_uncertainty;
-               });
+    // With the material's scatter curves, each scatter component moves the
+    // measurement's scatter and the curve its calibration would then have
+    // found, together.
+    const std::optional<ScatterCurves>& curves = inputs.scatter_curves;
+    const char* with_curve = curves ? ", with the curve it calibrated" : "";
     withInputs(
-        "scatter width",
-        fmt::format("sigma = {:.4g} +- {:.2g} mm", scatter.sigma_mm, scatter.sigma_uncertainty_mm),
-        "mm", scatter.sigma_uncertainty_mm, [&](MeasurementInputs& in, double amount) {
-          in.job.scatter.sigma_mm += amount * scatter.sigma_uncertainty_mm;
-        });
+        "scatter weight",
+        fmt::format("w = {:.4g} +- {:.2g}{}", scatter.weight, scatter.weight_uncertainty, with_curve),
+        "1", scatter.weight_uncertainty,
+        [&](MeasurementInputs& in, double amount) {
+          in.job.scatter.weight += amount * scatter.weight_uncertainty;
+        },
+        curves ? curves->weight_plus_u : std::nullopt);
+    withInputs("scatter width",
+               fmt::format("sigma = {:.4g} +- {:.2g} mm{}", scatter.sigma_mm,
+                           scatter.sigma_uncertainty_mm, with_curve),
+               "mm", scatter.sigma_uncertainty_mm,
+               [&](MeasurementInputs& in, double amount) {
+                 in.job.scatter.sigma_mm += amount * scatter.sigma_uncertainty_mm;
+               },
+               curves ? curves->sigma_plus_u : std::nullopt);
   }
   const Machine& machine = inputs.machine;
   withInputs("source-detector distance",

@@ -134,6 +134,12 @@ std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
   return out;
 }
 
+MaterialScatter materialScatterFromConfig(const ConfigNode& node) {
+  MaterialScatter out{ScatterModel::fromConfig(node), std::nullopt};
+  if (auto curves = node.find("curve_moves")) out.curves = ScatterCurves::fromConfig(*curves);
+  return out;
+}
+
 MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
                                         const std::filesystem::path& job_file,
                                         bool needs_material) {
@@ -154,7 +160,9 @@ MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
     // The detector's scatter its wedge calibration found, for a job without
     // a "scatter" of its own.
     if (auto found = material.find("scatter"); found && !root.has("scatter")) {
-      in.job.scatter = ScatterModel::fromConfig(*found);
+      MaterialScatter scatter = materialScatterFromConfig(*found);
+      in.job.scatter = scatter.model;
+      in.scatter_curves = std::move(scatter.curves);
       spdlog::info("{}: the scatter its calibration found: weight {:.4f}, sigma {:.1f} mm",
                    in.job.material_file.string(), in.job.scatter.weight, in.job.scatter.sigma_mm);
     }

@@ -8,12 +8,14 @@
 
 #include <spdlog/spdlog.h>
 
+#include "xgauge/material/scatter_curves.h"
+
 #include <cmath>
 
 namespace xgauge {
 
 void writeCalibrationOutputs(const std::filesystem::path& folder, const ExponentialSum& material,
-                             const ScatterModel* scatter, nlohmann::json figures,
+                             const nlohmann::json& scatter, nlohmann::json figures,
                              const CalibrationData& data, const TrueCurve& true_curve,
                              const nlohmann::json& pictures, bool html_report) {
   createOutputFolder(folder);
@@ -66,7 +68,7 @@ void writeCalibrationOutputs(const std::filesystem::path& folder, const Exponent
   }
   writeFileAtomically(folder / "calibration.json", figures.dump(2) + "\n");
   nlohmann::json material_file = material.toJson();
-  if (scatter && scatter->enabled()) material_file["scatter"] = scatter->toJson();
+  if (!scatter.is_null()) material_file["scatter"] = scatter;
   writeFileAtomically(folder / "material.json", material_file.dump(2) + "\n");
 }
 
@@ -185,7 +187,7 @@ namespace {
 // the last pose fit's radiographs on the page and its result.json, simulated
 // and difference images in `folder`/poses.
 void writeKnownPartOutputs(const PartCalibrationJob& job, const PartCalibration& result,
-                           const ScatterModel* scatter, const nlohmann::json& figures,
+                           const nlohmann::json& scatter, const nlohmann::json& figures,
                            const TrueCurve& true_curve, const std::filesystem::path& folder,
                            bool html_report) {
   // The last pose fit, with the calibrated material: the residual images show
@@ -282,6 +284,26 @@ nlohmann::json wedgeUncertaintyJson(const WedgeCalibrationJob& job,
 
 }  // namespace
 
+// The scatter a wedge calibration removed, for material.json: the model,
+// and how the curve moves with its weight and width (material/scatter_curves.h).
+nlohmann::json materialScatterJson(const WedgeCalibration& result) {
+  if (!result.scatter.enabled()) return nullptr;
+  nlohmann::json out = result.scatter.toJson();
+  ScatterCurves curves;
+  double besides = result.table_uncertainty * result.table_uncertainty;
+  for (const CurveInfluence& influence : result.influences) {
+    if (influence.name == kScatterWeightInfluence && influence.moved)
+      curves.weight_plus_u = influence.moved;
+    else if (influence.name == kScatterWidthInfluence && influence.moved)
+      curves.sigma_plus_u = influence.moved;
+    else
+      besides += influence.change * influence.change;
+  }
+  curves.transmission_uncertainty_besides = std::sqrt(besides);
+  out["curve_moves"] = curves.toJson();
+  return out;
+}
+
 void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibration& result,
                            const TrueCurve& true_curve, const std::filesystem::path& folder,
                            bool html_report) {
@@ -306,8 +328,8 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
         {"material", result.material.toJson()},
         {"table", {{"path_mm", result.path_mm}, {"transmission", result.transmission}}},
         {"seconds", result.seconds}};
-    writeKnownPartOutputs(*result.part_job, part, &result.scatter, figures, true_curve, folder,
-                          html_report);
+    writeKnownPartOutputs(*result.part_job, part, materialScatterJson(result), figures,
+                          true_curve, folder, html_report);
     return;
   }
   // The table on the final curve's path axis: eq. 3.7 maps x to x s + x0.
@@ -342,7 +364,8 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
   data.path_mm = shifted;
   data.transmission = result.transmission;
   data.x_max_mm = result.x_max_mm;
-  writeCalibrationOutputs(folder, result.material, &result.scatter, figures, data, true_curve,
+  writeCalibrationOutputs(folder, result.material, materialScatterJson(result), figures, data,
+                          true_curve,
                           pictures, html_report);
 }
 

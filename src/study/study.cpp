@@ -68,7 +68,7 @@ std::string runFingerprint(const nlohmann::json& job, const DatasetTruth& truth,
   std::string text = "xgauge " XGAUGE_VERSION_STRING "\n";
   text += "job " + job.dump() + "\n";
   text += "machine " + truth.machine.dump() + "\n";
-  text += "material " + inputs.material.toJson().dump() + "\n";
+  text += "material " + materialRecord(inputs).dump() + "\n";
   text += fmt::format("images {}\n", images);
   text += "part " + digests.of(truth.part_file) + "\n";
   for (const auto& radiograph : job.at("radiographs"))
@@ -223,6 +223,16 @@ nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& trut
   return job;
 }
 
+nlohmann::json materialRecord(const StudyInputs& inputs) {
+  nlohmann::json record = inputs.material.toJson();
+  if (inputs.material_scatter) {
+    record["scatter"] = inputs.material_scatter->model.toJson();
+    if (inputs.material_scatter->curves)
+      record["scatter"]["curve_moves"] = inputs.material_scatter->curves->toJson();
+  }
+  return record;
+}
+
 StudyInputs prepareStudyInputs(const DatasetTruth& truth, const nlohmann::json& settings,
                                const fs::path& settings_file) {
   StudyInputs inputs;
@@ -249,7 +259,7 @@ StudyInputs prepareStudyInputs(const DatasetTruth& truth, const nlohmann::json& 
     const ConfigNode node = ConfigNode::loadFile(settings_file.parent_path() / material);
     inputs.material = ExponentialSum::fromConfig(node);
     if (auto scatter = node.find("scatter"))
-      inputs.material_scatter = ScatterModel::fromConfig(*scatter);
+      inputs.material_scatter = materialScatterFromConfig(*scatter);
     node.finish();
   }
   return inputs;
@@ -266,6 +276,10 @@ MeasurementInputs studyRunInputs(const nlohmann::json& job, const StudyInputs& i
   auto part = std::make_shared<const PartModel>(*inputs.part);
   in.job = MeasurementJob::fromConfig(root, settings_file, *part, true);
   root.finish();
+  if (!job.contains("scatter") && inputs.material_scatter) {
+    in.job.scatter = inputs.material_scatter->model;
+    in.scatter_curves = inputs.material_scatter->curves;
+  }
   in.part = std::move(part);
   in.machine = inputs.machine;
   in.material = inputs.material;
@@ -340,20 +354,18 @@ StudySummary runStudy(const StudyOptions& options) {
   const StudyInputs inputs = prepareStudyInputs(truth, settings, options.settings);
   // Without a scatter of their own, the runs take the one the material's
   // calibration found, as a measurement job does (measure/inputs.cpp).
-  if (!settings.contains("scatter") && inputs.material_scatter) {
-    settings["scatter"] = inputs.material_scatter->toJson();
-    spdlog::info("{}: the scatter its material's calibration found: weight {:.4f}, sigma {:.1f} mm",
-                 options.settings.string(), inputs.material_scatter->weight,
-                 inputs.material_scatter->sigma_mm);
-  }
+  if (!settings.contains("scatter") && inputs.material_scatter)
+    spdlog::info("{}: the scatter its material's calibration found: weight {:.4f}, sigma {:.1f} mm{}",
+                 options.settings.string(), inputs.material_scatter->model.weight,
+                 inputs.material_scatter->model.sigma_mm,
+                 inputs.material_scatter->curves ? ", moved together with the curve in the budget"
+                                                 : "");
   PreparedShots shots(inputs.machine);
   // Records, so that every run's job.json can be measured again by hand.
   const fs::path machine_file = options.output / "machine.json";
   const fs::path material_file = options.output / "material.json";
   writeFileAtomically(machine_file, truth.machine.dump(2) + "\n");
-  nlohmann::json material_record = inputs.material.toJson();
-  if (inputs.material_scatter) material_record["scatter"] = inputs.material_scatter->toJson();
-  writeFileAtomically(material_file, material_record.dump(2) + "\n");
+  writeFileAtomically(material_file, materialRecord(inputs).dump(2) + "\n");
 
   std::vector<Combination> runs = combinations(truth, options.combinations);
   if (options.limit > 0 && static_cast<size_t>(options.limit) < runs.size())

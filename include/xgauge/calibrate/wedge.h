@@ -114,10 +114,17 @@ struct WedgeCalibrationJob {
 // One influence on the curve (step 7): its value and standard uncertainty,
 // and the curve's largest change over the calibrated range when it moves by
 // that uncertainty.
+// The names of the scatter's two influences on the curve.
+inline constexpr const char* kScatterWeightInfluence = "scatter weight";
+inline constexpr const char* kScatterWidthInfluence = "scatter sigma_mm";
+
 struct CurveInfluence {
   std::string name;
   double value = 0.0, uncertainty = 0.0;
   double change = 0.0;
+  // The curve calibrated with the influence moved by +uncertainty (absent
+  // for an influence without one, such as the unmeasured halo).
+  std::optional<ExponentialSum> moved;
 };
 
 struct WedgeCalibration {

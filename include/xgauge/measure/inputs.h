@@ -8,7 +8,9 @@
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/image/image.h"
 #include "xgauge/image/radiograph.h"
+#include "xgauge/image/scatter.h"
 #include "xgauge/material/exponential_sum.h"
+#include "xgauge/material/scatter_curves.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/xray/machine.h"
 
@@ -42,11 +44,23 @@ struct PreparedRadiograph {
 PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
                                      const RadiographSpec& spec, const Machine& machine);
 
+// The detector scatter a wedge calibration found, as its material.json
+// carries it under "scatter", with how the curve moves with it when given.
+struct MaterialScatter {
+  ScatterModel model;
+  std::optional<ScatterCurves> curves;
+};
+MaterialScatter materialScatterFromConfig(const ConfigNode& node);
+
 struct MeasurementInputs {
   MeasurementJob job;
   std::shared_ptr<const PartModel> part;
   Machine machine;
   std::optional<ExponentialSum> material;  // absent when the job names none (a calibration)
+  // How the material's curve moves with the scatter, when the job takes its
+  // scatter from the material's calibration (no "scatter" of its own) and
+  // the material file says: the budget then moves both together.
+  std::optional<ScatterCurves> scatter_curves;
   // One per job.radiographs entry, in its order.
   std::vector<std::shared_ptr<const PreparedRadiograph>> radiographs;
   // Every file read, as given in the job (or its folder), with its SHA-256.

@@ -28,10 +28,10 @@ struct CalibrationData {
 // `html_report` report.html (report/html.h: the data, the fitted and true
 // curves, the residual and `pictures`, the radiograph as the calibration
 // saw it) and, last, material.json, so that a failure leaves no material
-// file. With `scatter` (enabled), material.json carries it under "scatter"
+// file. With `scatter` (not null), material.json carries it under "scatter"
 // for the measurements that use the material without a scatter of their own.
 void writeCalibrationOutputs(const std::filesystem::path& folder, const ExponentialSum& material,
-                             const ScatterModel* scatter, nlohmann::json figures,
+                             const nlohmann::json& scatter, nlohmann::json figures,
                              const CalibrationData& data, const TrueCurve& true_curve,
                              const nlohmann::json& pictures, bool html_report);
 

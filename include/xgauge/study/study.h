@@ -85,9 +85,14 @@ struct StudyInputs {
   Machine machine;
   ExponentialSum material{{{1.0, 0.0}}, ""};
   // The detector's scatter the material file carries (a wedge calibration's),
-  // for settings without a "scatter" of their own.
-  std::optional<ScatterModel> material_scatter;
+  // for settings without a "scatter" of their own: every run then takes it
+  // from the material, as a measurement job does (measure/inputs.h), and
+  // its budget moves it together with the curve when the file says how.
+  std::optional<MaterialScatter> material_scatter;
 };
+// The material as the study records it (material.json in its folder, which
+// every run's job.json names): the curve and the scatter it carries.
+nlohmann::json materialRecord(const StudyInputs& inputs);
 StudyInputs prepareStudyInputs(const DatasetTruth& truth, const nlohmann::json& settings,
                                const std::filesystem::path& settings_file);
 

@@ -138,10 +138,16 @@ class Setup:
         stated = self.machine.get("uncertainty", {})
         self.u_distance_mm = stated.get("source_detector_distance_mm", DEFAULT_U_DISTANCE_MM)
         self.u_pitch_relative = stated.get("pixel_pitch_relative", DEFAULT_U_PITCH_RELATIVE)
+        self.pitch_mm = self.machine["detector"]["pixel_pitch_mm"][0]
+        # The job's scatter; a job that takes its scatter from its material's
+        # calibration states none, and the runs (whose material is fitted to
+        # the lab's table, without a scatter) state the lab's nominal one.
+        if "scatter" not in self.job:
+            lab = self.recipe["detector"]["scatter"]
+            self.job["scatter"] = {"weight": lab["weight"], "sigma_mm": lab["sigma_px"] * self.pitch_mm}
         scatter = self.job["scatter"]
         self.u_weight = scatter.get("weight_uncertainty", DEFAULT_U_WEIGHT_RELATIVE * scatter["weight"])
         self.u_sigma_mm = scatter.get("sigma_uncertainty_mm", DEFAULT_U_SIGMA_RELATIVE * scatter["sigma_mm"])
-        self.pitch_mm = self.machine["detector"]["pixel_pitch_mm"][0]
         self.part_size_mm = args.part_size_mm or part_diagonal_mm(
             self.part_file, self.recipe["part"].get("dimensions", {}))
 
@@ -249,6 +255,10 @@ def measure_run(setup, material, run):
         files = {setup.free_name: "t00.tif", setup.moved_name: f"t{setup.moved_index:02d}.tif"}
         for r in job["radiographs"]:
             r["image"] = str(data / files[r["name"]])
+            if "previous" in r:  # the shot simulated just before it
+                if r["name"] != setup.moved_name:
+                    sys.exit(f"{setup.job_file}: only the translated radiograph may name a previous frame")
+                r["previous"] = str(data / f"t{setup.moved_index - 1:02d}.tif")
             r["dark"], r["flat"] = str(data / truth["dark"]), str(data / truth["flat"])
             r["white_region"] = truth["white_region"]
         save(folder / "job.json", job)

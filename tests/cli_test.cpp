@@ -415,6 +415,30 @@ TEST_F(CalibrateWedge, TheMaterialSaysHowItsCurveMovesWithTheScatter) {
   EXPECT_LT(besides, u);
 }
 
+// A shot that records 1 % of the frame before it (the wedge 30 rows lower,
+// its sides 20 columns apart): named as its previous frame, the lag is
+// estimated, subtracted and recorded in calibration.json.
+TEST_F(CalibrateWedge, SubtractsTheLagOfItsPreviousFrame) {
+  Image before(200, 300, 1.0f);
+  const Image shifted = ramp(70, 290);
+  for (int y = 0; y < 300; ++y)
+    for (int x = 30; x < 170; ++x) before(x, y) = shifted(std::clamp(x - 20 + (x >= 100 ? 40 : 0), 0, 199), y);
+  Image now = ramp(40, 260);
+  for (int y = 0; y < 300; ++y)
+    for (int x = 0; x < 200; ++x) now(x, y) += 0.01f * before(x, y);
+  writeTiff(out("now.tif"), now, TiffFormat::kFloat32);
+  writeTiff(out("before.tif"), before, TiffFormat::kFloat32);
+  const CommandResult r = calibrate(write("job.json", R"({"machine": "machine.json",
+      "radiograph": {"image": "now.tif", "previous": "before.tif", "white_region": [5, 5, 30, 30]},
+      "wedge": {"max_thickness_mm": 20.0, "ramp_length_mm": 90.0}})"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const nlohmann::json lag =
+      nlohmann::json::parse(std::ifstream(out("cal") + "/calibration.json")).at("lag");
+  EXPECT_EQ(lag.at("source"), "estimated") << lag;
+  EXPECT_NEAR(lag.at("fraction").get<double>(), 0.01, 3.0 * lag.at("uncertainty").get<double>()) << lag;
+  EXPECT_LT(lag.at("uncertainty").get<double>(), 0.002) << lag;
+}
+
 TEST_F(CalibrateWedge, NoRamp) {
   writeTiff(out("open.tif"), Image(200, 300, 1.0f), TiffFormat::kFloat32);
   expectFailure(job("", "open.tif"), "no ramp found");

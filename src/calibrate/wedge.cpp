@@ -276,6 +276,7 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   if (prepared.lag)
     spdlog::info("{}: lag of {} subtracted, {}", name, spec.previous.string(),
                  describeLag(*prepared.lag));
+  out.lag = prepared.lag;
   const Image normalized = std::move(prepared.image);
   Image image = normalized;
   out.normalized = normalized;  // what a failure below shows

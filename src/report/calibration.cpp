@@ -284,6 +284,16 @@ nlohmann::json wedgeUncertaintyJson(const WedgeCalibrationJob& job,
 
 }  // namespace
 
+// The previous frame's lag the calibration subtracted, or null.
+nlohmann::json wedgeLagJson(const WedgeCalibrationJob& job, const WedgeCalibration& result) {
+  if (!result.lag) return nullptr;
+  nlohmann::json lag = {{"previous", job.radiograph.previous.string()},
+                        {"fraction", result.lag->fraction},
+                        {"source", result.lag->uncertainty > 0.0 ? "estimated" : "machine"}};
+  if (result.lag->uncertainty > 0.0) lag["uncertainty"] = result.lag->uncertainty;
+  return lag;
+}
+
 // The scatter a wedge calibration removed, for material.json: the model,
 // and how the curve moves with its weight and width (material/scatter_curves.h).
 nlohmann::json materialScatterJson(const WedgeCalibration& result) {
@@ -324,6 +334,7 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
         {"geometry", {{"magnification", result.magnification}, {"x_max_mm", result.x_max_mm}}},
         {"fit", toJson(result.fit)},
         {"scatter", wedgeScatterJson(job, result)},
+        {"lag", wedgeLagJson(job, result)},
         {"uncertainty", wedgeUncertaintyJson(job, result)},
         {"material", result.material.toJson()},
         {"table", {{"path_mm", result.path_mm}, {"transmission", result.transmission}}},
@@ -350,6 +361,7 @@ void writeWedgeCalibration(const WedgeCalibrationJob& job, const WedgeCalibratio
                             {"fit", toJson(result.fit)},
                             {"eq_3_7", {{"x0_mm", result.x0_mm}, {"x_max_mm", result.x_max_mm}}},
                             {"scatter", wedgeScatterJson(job, result)},
+                            {"lag", wedgeLagJson(job, result)},
                             {"uncertainty", wedgeUncertaintyJson(job, result)},
                             {"material", result.material.toJson()},
                             {"table",

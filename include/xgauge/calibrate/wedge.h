@@ -71,6 +71,7 @@
 #include "xgauge/calibrate/ramp.h"
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/image/image.h"
+#include "xgauge/image/lag.h"
 #include "xgauge/material/exponential_sum.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/xray/machine.h"
@@ -145,6 +146,7 @@ struct WedgeCalibration {
   std::optional<HaloFit> halo;  // when estimated (its primary image moved to `normalized`)
   double seconds = 0.0;
   Image normalized;  // the radiograph as the ramp was found in (scatter removed)
+  std::optional<LagEstimate> lag;  // the previous frame's lag subtracted, if named
   // The step under way or, after a success, "done": what a failure names.
   std::string step;
   bool ramp_found = false;  // `ramp` holds a detection

@@ -41,10 +41,12 @@ struct LagEstimate {
 };
 
 // Estimates g from `current` and `previous`, both flat-field corrected (not
-// divided by a white level) and of one size. `open_level` is the current
-// image's open-beam value (its white region's mean); pixels below 0.95 of
-// it, smoothed over 2 px, and everything within 16 px of them, are this
-// shot's own shadow and are left out. Throws Error (naming `name`) when the
+// divided by a white level) and of one size, binned 2 x 2 until at most
+// 1024 px wide. `open_level` is the current image's open-beam value (its
+// white region's mean); pixels below 0.95 of it, smoothed over 2 px, and
+// everything within 16 binned px of them, are this shot's own shadow and
+// are left out; of the rest, the pixels near the previous frame's edges
+// carry the estimate. Throws Error (naming `name`) when the
 // images differ in size or hold a non-finite value. When too few pixels or
 // too little of the previous shot's structure is seen in the open beam, the
 // estimate comes back with its (large) uncertainty: the caller decides.

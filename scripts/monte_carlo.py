@@ -18,9 +18,9 @@ any order and a rerun resumes: a run whose out/result.json exists is kept):
                      Only t00 .. t<k> are simulated (the earlier shots are
                      kept as they give the detector's ghost).
   job (xgauge):      the nominal machine, the template job's scatter and
-                     distance, and the material fitted once to the unperturbed
-                     lab's transmission table (`xgauge material --from-truth
-                     --terms 3`) with every mu scaled by (1 + eps),
+                     distance, and the unperturbed lab's true curve
+                     (`xgauge material --from-truth`: at least 3 terms, over
+                     the paths the shots show) with every mu scaled by (1 + eps),
                      eps ~ N(0, eps_u), eps_u = u / max over x in [0, S] of
                      |x sum_k a_k mu_k exp(-mu_k x)| (S: the part's nominal
                      bounding-box diagonal), as the budget's material term.
@@ -422,7 +422,7 @@ def main():
     parser.add_argument("--recipe", default=str(REPO / "datasets" / "prism_a_small.json"))
     parser.add_argument("--job", default=str(REPO / "examples" / "prism_a_small_job.json"),
                         help="template job: one free and one translated radiograph")
-    parser.add_argument("--terms", type=int, default=3, help="exponentials of the fitted material")
+    parser.add_argument("--terms", type=int, default=3, help="fewest exponentials of the fitted material")
     parser.add_argument("--part-size-mm", type=float, help="the part's nominal bounding-box diagonal")
     parser.add_argument("--xgauge", default=str(REPO / "build" / "apps" / "xgauge" / "xgauge"))
     parser.add_argument("--keep-images", action="store_true", help="keep each run's TIFF files")

@@ -3,7 +3,8 @@
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/core/config.h"
 #include "xgauge/core/output.h"
-#include "xgauge/material/exponential_fit.h"
+#include "xgauge/geometry/part_model.h"
+#include "xgauge/xray/machine.h"
 #include "xgauge/measure/inputs.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/measure/measure.h"
@@ -97,23 +98,24 @@ void addMaterialCommand(CLI::App& app, MaterialArguments& args) {
   CLI::App* cmd = app.add_subcommand(
       "material", "Fit an exponential-sum material to a virtual lab's transmission table");
   cmd->add_option("--from-truth", args.truth, "truth.json of a simulated dataset")->required();
-  cmd->add_option("--terms", args.terms, "Number of exponentials M")->check(CLI::Range(1, 4));
+  cmd->add_option("--terms", args.terms,
+                  "Fewest exponentials M; more are added, up to 8, until the largest residual "
+                  "over the paths the shots show is at most 1e-4")
+      ->check(CLI::Range(1, 8));
   cmd->add_option("-o,--output", args.output, "Material file (JSON)")->required();
 }
 
 void runMaterial(const MaterialArguments& args) {
   checkOutputFile(args.output);
   const DatasetTruth truth = DatasetTruth::load(args.truth);
-  ExponentialFitReport report;
-  const ExponentialSum material =
-      fitExponentialSum(truth.path_mm, truth.transmission, args.terms, {}, &report);
-  nlohmann::json out = material.toJson();
-  out["description"] =
-      fmt::format("{} exponentials fitted to the transmission table of {} (RMS {:.2e}, max {:.2e})",
-                  args.terms, args.truth, report.rms_residual, report.max_abs_residual);
-  writeFileAtomically(args.output, out.dump(2) + "\n");
-  spdlog::info("wrote {}: RMS residual {:.2e}, max {:.2e}", args.output, report.rms_residual,
-               report.max_abs_residual);
+  const PartModel part = PartModel::load(truth.part_file);
+  const ConfigNode node = ConfigNode::fromJson(truth.machine, args.truth + " (machine)");
+  const Machine machine = Machine::fromConfig(node);
+  node.finish();
+  const double longest = longestTruePathMm(truth, part, machine);
+  const ExponentialSum material = fitTrueCurve(truth, 1.05 * longest + 0.5, args.terms);
+  writeFileAtomically(args.output, material.toJson().dump(2) + "\n");
+  spdlog::info("wrote {}: {}", args.output, material.description());
 }
 
 }  // namespace xgauge::cli

@@ -1,7 +1,17 @@
 #include "xgauge/measure/truth.h"
 
 #include "xgauge/core/config.h"
+#include "xgauge/core/error.h"
+#include "xgauge/geometry/part_model.h"
+#include "xgauge/material/exponential_fit.h"
 #include "xgauge/xray/machine.h"
+#include "xgauge/xray/renderer.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <optional>
 
 namespace xgauge {
 
@@ -44,6 +54,54 @@ const TruthShot& DatasetTruth::shot(const std::string& name) const {
   for (const auto& s : shots)
     if (s.name == name) return s;
   fail("no shot named '{}' in {}", name, (folder / "truth.json").string());
+}
+
+double longestTruePathMm(const DatasetTruth& truth, const PartModel& part, const Machine& machine) {
+  const TriangleMesh mesh = part.mesh(part.values(truth.dimensions));
+  Machine binned = machine;
+  const int factor = std::max(1, (std::max(machine.columns, machine.rows) + 511) / 512);
+  binned.columns = (machine.columns + factor - 1) / factor;
+  binned.rows = (machine.rows + factor - 1) / factor;
+  binned.pitch_u_mm *= factor;
+  binned.pitch_v_mm *= factor;
+  binned.cx_px /= factor;
+  binned.cy_px /= factor;
+  double longest = 0.0;
+  std::vector<Vec3> world;
+  Image paths;
+  for (const TruthShot& shot : truth.shots) {
+    poseVertices(shot.pose, mesh.vertices, world);
+    renderPathLength(binned, WorldMesh{world, mesh.triangles, mesh.csg.get()}, {}, paths);
+    for (float p : paths.pixels()) longest = std::max(longest, static_cast<double>(p));
+  }
+  return longest;
+}
+
+ExponentialSum fitTrueCurve(const DatasetTruth& truth, double max_path_mm, int min_terms,
+                            double tolerance) {
+  XG_CHECK(min_terms >= 1 && min_terms <= 8, "min_terms must be 1 to 8");
+  std::vector<double> path, transmission;
+  for (size_t i = 0; i < truth.path_mm.size(); ++i) {
+    if (truth.path_mm[i] > max_path_mm && path.size() >= 16) break;
+    path.push_back(truth.path_mm[i]);
+    transmission.push_back(truth.transmission[i]);
+  }
+  std::optional<ExponentialSum> best;
+  ExponentialFitReport best_report;
+  for (int terms = min_terms; terms <= 8; ++terms) {
+    ExponentialFitReport report;
+    ExponentialSum fitted = fitExponentialSum(path, transmission, terms, {}, &report);
+    if (!best || report.max_abs_residual < best_report.max_abs_residual)
+      best = std::move(fitted), best_report = report;
+    // A term the fit dropped (weight 0) means more terms cannot help.
+    if (best_report.max_abs_residual <= tolerance || report.terms_used < terms) break;
+  }
+  return ExponentialSum(
+      best->terms(),
+      fmt::format("{} exponentials fitted to the transmission table of {} over 0-{:.1f} mm (max "
+                  "residual {:.1e})",
+                  best->terms().size(), (truth.folder / "truth.json").string(), path.back(),
+                  best_report.max_abs_residual));
 }
 
 }  // namespace xgauge

@@ -8,7 +8,6 @@
 #include "xgauge/core/digest.h"
 #include "xgauge/core/output.h"
 #include "xgauge/core/progress.h"
-#include "xgauge/material/exponential_fit.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/measure/measure.h"
 #include "xgauge/measure/model.h"
@@ -248,13 +247,10 @@ StudyInputs prepareStudyInputs(const DatasetTruth& truth, const nlohmann::json& 
     material = it->get<std::string>();
   }
   if (material == "fit") {
-    ExponentialFitReport report;
-    const ExponentialSum fitted =
-        fitExponentialSum(truth.path_mm, truth.transmission, 3, {}, &report);
-    inputs.material = ExponentialSum(
-        fitted.terms(),
-        fmt::format("3 exponentials fitted to {} (max residual {:.2e})",
-                    (truth.folder / "truth.json").string(), report.max_abs_residual));
+    // Over the paths the shots show, with a margin for the binned render.
+    const double longest = longestTruePathMm(truth, *inputs.part, inputs.machine);
+    inputs.material = fitTrueCurve(truth, 1.05 * longest + 0.5);
+    spdlog::info("material: {}", inputs.material.description());
   } else {
     const ConfigNode node = ConfigNode::loadFile(settings_file.parent_path() / material);
     inputs.material = ExponentialSum::fromConfig(node);

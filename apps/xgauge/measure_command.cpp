@@ -70,10 +70,12 @@ int runMeasure(const MeasureArguments& args) {
     table += "\n";
   }
   for (const auto& c : result.uncertainty.combinations)
-    table += fmt::format(
-        "{:<18} {:>10.4f} {:>9.4f}  (measurable combination of dimensions that are "
-        "not determined alone)\n",
-        c.expression, c.value, c.expanded);
+    table += c.name.empty()
+                 ? fmt::format("{:<18} {:>10.4f} {:>9.4f}  (measurable combination of dimensions "
+                               "that are not determined alone)\n",
+                               c.expression, c.value, c.expanded)
+                 : fmt::format("{:<18} {:>10.4f} {:>9.4f}  (the part's combination {})\n",
+                               c.name, c.value, c.expanded, c.expression);
   if (toleranced) table += fmt::format("Verdicts: {}.\n", kDecisionRule);
   if (!result.check.warnings.empty()) {
     table += fmt::format("{} warning(s):\n", result.check.warnings.size());

@@ -26,6 +26,7 @@ struct PartModel::Definition {
   std::string name;  // the file name without extension
   std::string description;
   std::vector<Dimension> dimensions;
+  std::vector<DeclaredCombination> combinations;
   // Variables: the dimension names, then the derived names.
   Symbols symbols;
   std::vector<ExpressionSource> derived;  // derived k sees dimensions and derived < k
@@ -163,6 +164,42 @@ PartModel::PartModel(PartModel&&) noexcept = default;
 PartModel& PartModel::operator=(PartModel&&) noexcept = default;
 PartModel::~PartModel() = default;
 
+namespace {
+
+// "combinations": [{"name", optional "description", "terms": {dimension:
+// coefficient, ...}}]: at least two terms, each a dimension of the part with
+// a finite non-zero coefficient; all terms in one unit.
+std::vector<DeclaredCombination> readCombinations(const ConfigNode& list,
+                                                  const std::vector<Dimension>& dimensions,
+                                                  std::set<std::string>& taken) {
+  std::vector<DeclaredCombination> out;
+  for (size_t i = 0; i < list.size(); ++i) {
+    const ConfigNode item = list[i];
+    DeclaredCombination c;
+    c.name = readName(item, taken);
+    c.description = optionalString(item, "description");
+    const ConfigNode terms = item.at("terms");
+    std::string unit;
+    for (const std::string& dimension : terms.keys()) {
+      const auto found = std::find_if(dimensions.begin(), dimensions.end(),
+                                      [&](const Dimension& d) { return d.name == dimension; });
+      if (found == dimensions.end()) terms.at(dimension).fail("not a dimension of the part");
+      const double coefficient = terms.at(dimension).number();
+      if (!std::isfinite(coefficient) || coefficient == 0.0)
+        terms.at(dimension).fail("a coefficient must be finite and not 0");
+      if (!unit.empty() && found->unit != unit)
+        terms.at(dimension).fail(fmt::format("in {}, not {} as the other terms", found->unit, unit));
+      unit = found->unit;
+      c.terms.emplace_back(dimension, coefficient);
+    }
+    if (c.terms.size() < 2) terms.fail("a combination needs at least two dimensions");
+    out.push_back(std::move(c));
+  }
+  return out;
+}
+
+}  // namespace
+
 PartModel PartModel::load(const std::filesystem::path& path) {
   return fromConfig(ConfigNode::loadFile(path), path);
 }
@@ -177,7 +214,7 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
   const SolidSpec spec = readSolidSpec(root.at("shape"), path.parent_path());
   d.scalars = spec.scalars;
   if (spec.is_stl) {
-    for (const char* key : {"dimensions", "constants", "derived", "constraints"})
+    for (const char* key : {"dimensions", "constants", "derived", "constraints", "combinations"})
       if (const auto node = root.find(key))
         node->fail(
             "a part with an \"stl\" shape has no dimensions, constants, derived values "
@@ -230,6 +267,8 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
             {readExpression(item.at("expr")), item.get<std::string>("message")});
       }
     }
+    if (const auto combinations = root.find("combinations"))
+      d.combinations = readCombinations(*combinations, d.dimensions, taken);
   }
   root.finish();
 
@@ -271,6 +310,9 @@ PartModel PartModel::fromStl(const std::filesystem::path& path) {
 const std::string& PartModel::name() const { return definition_->name; }
 const std::string& PartModel::description() const { return definition_->description; }
 const std::vector<Dimension>& PartModel::dimensions() const { return definition_->dimensions; }
+const std::vector<DeclaredCombination>& PartModel::combinations() const {
+  return definition_->combinations;
+}
 const std::vector<Triangle>& PartModel::triangles() const {
   return definition_->shape->triangles();
 }

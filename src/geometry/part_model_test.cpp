@@ -160,6 +160,31 @@ TEST(PartModel, NominalValuesMustSatisfyTheConstraints) {
                   "/constraints/0/expr");
 }
 
+TEST(PartModel, CombinationsAreNamedSumsOfItsDimensions) {
+  const std::string with = R"("constraints": [{"expr": "width - p", "message": "the notch must stay inside"}],)";
+  const auto declaring = [&](const std::string& combinations) {
+    return replaced(kNotchedBar, with, with + R"( "combinations": )" + combinations + ",");
+  };
+  const PartModel model = loadText(
+      declaring(R"([{"name": "span", "terms": {"width": 1, "p": -0.5}, "description": "d"}])"));
+  ASSERT_EQ(model.combinations().size(), 1u);
+  EXPECT_EQ(model.combinations()[0].name, "span");
+  EXPECT_EQ(model.combinations()[0].description, "d");
+  ASSERT_EQ(model.combinations()[0].terms.size(), 2u);
+  EXPECT_TRUE(loadText(kNotchedBar).combinations().empty());
+
+  expectLoadError(declaring(R"([{"name": "span", "terms": {"width": 1, "depth": 1}}])"),
+                  "not a dimension of the part", "/combinations/0/terms/depth");
+  expectLoadError(declaring(R"([{"name": "span", "terms": {"width": 1}}])"),
+                  "a combination needs at least two dimensions", "/combinations/0/terms");
+  expectLoadError(declaring(R"([{"name": "span", "terms": {"width": 1, "p": 0}}])"),
+                  "a coefficient must be finite and not 0", "/combinations/0/terms/p");
+  expectLoadError(declaring(R"([{"name": "top", "terms": {"width": 1, "p": 1}}])"), "'top' is defined twice",
+                  "/combinations/0/name");
+  expectLoadError(declaring(R"([{"name": "span", "terms": {"width": 1, "p": 1}, "typo": 1}])"),
+                  "unknown key 'typo'", "/combinations/0/typo");
+}
+
 TEST(PartModel, CopiesEvaluateOnTheirOwn) {
   auto original = std::make_unique<PartModel>(loadText(kNotchedBar));
   const PartModel copy = *original;

@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 
 namespace xgauge {
 
@@ -297,6 +298,46 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     budget.dimensions.push_back(std::move(du));
   }
 
+  // The drawing's combinations (the part model's "combinations") whose
+  // dimensions are all free: their value and U from the total covariance,
+  // whether or not the single dimensions are identifiable.
+  const auto freeColumn = [&](const std::string& name) -> std::optional<size_t> {
+    for (size_t j = 0; j < free.size(); ++j)
+      if (dims[static_cast<size_t>(free[j])].name == name) return j;
+    return std::nullopt;
+  };
+  std::vector<std::vector<std::pair<size_t, double>>> declared_pairs;
+  for (const DeclaredCombination& declared : model.part().combinations()) {
+    std::vector<std::pair<size_t, double>> at;
+    for (const auto& [name, coefficient] : declared.terms)
+      if (const auto j = freeColumn(name)) at.emplace_back(*j, coefficient);
+    if (at.size() != declared.terms.size()) continue;
+    Eigen::VectorXd t = Eigen::VectorXd::Zero(total.rows());
+    MeasurableCombination combination;
+    combination.name = declared.name;
+    std::string expression;
+    for (size_t k = 0; k < at.size(); ++k) {
+      const auto [j, coefficient] = at[k];
+      t(column[j]) = coefficient;
+      combination.terms.emplace_back(budget.dimensions[j].name, coefficient);
+      combination.value += coefficient * theta[static_cast<size_t>(free[j])];
+      const std::string factor =
+          std::abs(coefficient) == 1.0 ? "" : fmt::format("{:g} ", std::abs(coefficient));
+      expression += k == 0 ? fmt::format("{}{}{}", coefficient < 0 ? "-" : "", factor,
+                                         budget.dimensions[j].name)
+                           : fmt::format(" {} {}{}", coefficient < 0 ? "-" : "+", factor,
+                                         budget.dimensions[j].name);
+    }
+    combination.expression = expression;
+    bool identifiable = true;
+    for (const Eigen::VectorXd& v : null)
+      identifiable &= std::abs(t.dot(v)) < 1e-3 * t.cwiseAbs().dot(v.cwiseAbs());
+    combination.expanded =
+        identifiable ? budget.coverage_factor * std::sqrt(std::max(0.0, t.dot(total * t))) : 0.0;
+    if (at.size() == 2) declared_pairs.push_back(at);
+    budget.combinations.push_back(std::move(combination));
+  }
+
   // Measurable combinations: two dimensions whose errors are (anti)correlated
   // so strongly that their sum (difference) is known much better than either.
   for (size_t i = 0; i < free.size(); ++i)
@@ -325,6 +366,12 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       const double var = vi + vj + 2.0 * coefficient * cov;
       const double u = std::sqrt(std::max(0.0, var));
       if (!either_lost && !(u < kCombinationGain * std::sqrt(std::min(vi, vj)))) continue;
+      const bool already = std::any_of(
+          declared_pairs.begin(), declared_pairs.end(), [&](const auto& at) {
+            return at[0].first == i && at[1].first == j &&
+                   at[1].second / at[0].second == coefficient;
+          });
+      if (already) continue;
       MeasurableCombination combination;
       combination.terms = {{budget.dimensions[i].name, 1.0},
                            {budget.dimensions[j].name, coefficient}};

@@ -391,7 +391,8 @@ TEST_F(Uncertainty, TwoEdgesThatMoveWithThePartAreReportedAsTheirSum) {
   // A box whose left and right faces are two dimensions measured from the
   // part origin: moving both by the same amount is a translation of the
   // part, which the pose absorbs exactly. Only their sum, the width, is
-  // defined by the radiographs.
+  // defined by the radiographs. The part model names it, and a second
+  // combination of two well-measured sides.
   std::ofstream(dir_.parent_path() / "xgauge_split_cuboid.json") << R"({
     "description": "a box whose side faces are two dimensions from the origin",
     "dimensions": [
@@ -400,6 +401,8 @@ TEST_F(Uncertainty, TwoEdgesThatMoveWithThePartAreReportedAsTheirSum) {
       {"name": "size_y", "nominal": 30.0, "min": 15.0, "max": 45.0, "unit": "mm"},
       {"name": "size_z", "nominal": 10.0, "min": 5.0, "max": 15.0, "unit": "mm"}],
     "derived": [{"name": "hy", "expr": "size_y / 2"}, {"name": "hz", "expr": "size_z / 2"}],
+    "combinations": [{"name": "width", "terms": {"left": 1, "right": 1}},
+                     {"name": "section", "terms": {"size_y": 2, "size_z": -2}}],
     "shape": {"type": "extrusion", "plane": ["x", "z"], "axis": "y",
       "profile": [["-left", "-hz"], ["right", "-hz"], ["right", "hz"], ["-left", "hz"]],
       "from": "-hy", "to": "hy"}})";
@@ -411,18 +414,39 @@ TEST_F(Uncertainty, TwoEdgesThatMoveWithThePartAreReportedAsTheirSum) {
   std::map<std::string, std::optional<double>> u;
   for (const auto& d : r.dimensions) u[d.name] = d.expanded_uncertainty;
   ASSERT_TRUE(u["size_y"].has_value());
+  ASSERT_TRUE(u["size_z"].has_value());
+  const auto named = [&](const std::string& name) -> const MeasurableCombination* {
+    for (const auto& c : r.uncertainty.combinations)
+      if (c.name == name) return &c;
+    return nullptr;
+  };
   // Either the single edges are not identifiable, or their U dwarfs the
-  // width's: in both cases the sum is reported with a small U.
-  const MeasurableCombination* sum = nullptr;
-  for (const auto& c : r.uncertainty.combinations)
-    if (c.expression == "left + right") sum = &c;
-  ASSERT_NE(sum, nullptr) << "no measurable combination left + right";
+  // width's: in both cases the sum is reported with a small U, once.
+  const MeasurableCombination* sum = named("width");
+  ASSERT_NE(sum, nullptr) << "no combination width";
+  EXPECT_EQ(sum->expression, "left + right");
+  EXPECT_EQ(std::count_if(r.uncertainty.combinations.begin(), r.uncertainty.combinations.end(),
+                          [](const auto& c) { return c.expression == "left + right"; }),
+            1);
   EXPECT_NEAR(sum->value, 20.6, std::max(sum->expanded, 2e-3));
+  EXPECT_GT(sum->expanded, 0.0);
   EXPECT_LT(sum->expanded, 0.1);
   for (const char* edge : {"left", "right"})
     if (u[edge]) {
       EXPECT_GT(*u[edge], 5.0 * sum->expanded) << edge;
     }
+  // 2 size_y - 2 size_z: its value, and a U between what the two sides'
+  // errors would give fully correlated and fully anticorrelated.
+  const MeasurableCombination* section = named("section");
+  ASSERT_NE(section, nullptr) << "no combination section";
+  EXPECT_EQ(section->expression, "2 size_y - 2 size_z");
+  std::map<std::string, double> value;
+  for (const auto& d : r.dimensions) value[d.name] = d.value;
+  const double y = value.at("size_y"), z = value.at("size_z");
+  EXPECT_NEAR(section->value, 2.0 * y - 2.0 * z, 1e-9);
+  EXPECT_NEAR(section->value, 2.0 * (29.4 - 10.3), std::max(section->expanded, 2e-3));
+  EXPECT_LE(section->expanded, 2.0 * (*u["size_y"] + *u["size_z"]) + 1e-12);
+  EXPECT_GE(section->expanded, 2.0 * std::abs(*u["size_y"] - *u["size_z"]) - 1e-12);
 }
 
 TEST_F(Uncertainty, AResidualRegionIsReportedWhereTheImageDiffersAndNowhereElse) {

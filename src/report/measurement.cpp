@@ -71,10 +71,12 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
     nlohmann::json terms = nlohmann::json::array();
     for (const auto& [name, coefficient] : c.terms)
       terms.push_back({{"dimension", name}, {"coefficient", coefficient}});
-    combinations.push_back({{"expression", c.expression},
-                            {"terms", terms},
-                            {"value", c.value},
-                            {"expanded_uncertainty", c.expanded}});
+    nlohmann::json item = {{"expression", c.expression},
+                           {"terms", terms},
+                           {"value", c.value},
+                           {"expanded_uncertainty", c.expanded}};
+    if (!c.name.empty()) item["name"] = c.name;
+    combinations.push_back(std::move(item));
   }
   const nlohmann::json uncertainty = {
       {"coverage_factor", result.uncertainty.coverage_factor},

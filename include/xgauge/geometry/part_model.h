@@ -95,6 +95,16 @@ struct Dimension {
   std::optional<DimensionTolerance> tolerance;  // the drawing's default; none when not given
 };
 
+// A quantity of the drawing that is a sum of dimensions with coefficients,
+// such as a pocket's width (its left and right edges from a centre line the
+// part does not show): reported with its uncertainty beside the dimensions,
+// even where the single terms are not identifiable.
+struct DeclaredCombination {
+  std::string name;
+  std::string description;                             // may be empty
+  std::vector<std::pair<std::string, double>> terms;  // (dimension, coefficient), declaration order
+};
+
 class PartModel {
  public:
   // Reads a part model file. Throws Error (file, key path, and for
@@ -117,6 +127,8 @@ class PartModel {
   const std::string& name() const;  // the file name without extension
   const std::string& description() const;
   const std::vector<Dimension>& dimensions() const;
+  // Optional key "combinations" (docs/formats.md).
+  const std::vector<DeclaredCombination>& combinations() const;
   std::vector<double> nominalValues() const;
   // Throws Error "unknown dimension 'x' (known: a, b, c)".
   int dimensionIndex(std::string_view name) const;

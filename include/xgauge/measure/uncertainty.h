@@ -48,8 +48,13 @@ struct DimensionUncertainty {
   double expanded = 0.0;  // U = k u_c (0 and meaningless when not identifiable)
 };
 
+// A sum or difference of dimensions measured better than its terms: one the
+// part model declares (named; any coefficients), or a pair of dimensions the
+// budget found so strongly correlated that their sum or difference is (no
+// name; coefficients +-1). U is 0 where the radiographs do not determine it.
 struct MeasurableCombination {
-  std::vector<std::pair<std::string, double>> terms;  // (dimension, coefficient +-1)
+  std::string name;                                   // the part model's; empty when found
+  std::vector<std::pair<std::string, double>> terms;  // (dimension, coefficient)
   std::string expression;                             // "pocket_left + pocket_right"
   double value = 0.0;
   double expanded = 0.0;  // U, k = 2

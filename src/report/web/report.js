@@ -276,9 +276,9 @@
     const u = result.uncertainty || {};
     if ((u.combinations || []).length) {
       root.append(el('h3', {}, 'Measurable combinations'),
-        el('p', { class: 'note' }, 'Dimensions the radiographs cannot separate, whose combination they do measure.'),
+        el('p', { class: 'note' }, "The part model's named combinations (a drawing's widths), and dimensions the radiographs cannot separate whose combination they do measure."),
         table(['Combination', 'Value', 'U (k = 2)'], u.combinations.map((c) =>
-          el('tr', {}, el('td', {}, c.expression), el('td', { class: 'num' }, fixed(c.value, 4)),
+          el('tr', {}, el('td', {}, c.name ? `${c.name} = ${c.expression}` : c.expression), el('td', { class: 'num' }, fixed(c.value, 4)),
             el('td', { class: 'num' }, fixed(c.expanded_uncertainty, 4))))));
     }
     if ((u.dimensions || []).length) {

@@ -1,12 +1,16 @@
 #include "budget.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <spdlog/spdlog.h>
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 
 #include <algorithm>
 #include <cmath>
 #include <optional>
+#include <ranges>
 
 namespace xgauge {
 
@@ -23,6 +27,9 @@ constexpr double kCombinationCorrelation = 0.99;
 constexpr double kCombinationGain = 0.2;
 constexpr int kResolveIterations = 10;  // from theta, for an influence moved by u
 constexpr int kResolveWidthPx = 1024;   // level of those re-solves (at least the fit's)
+constexpr double kGeometricNullRatio = 1e-10;  // of the vertex velocities' scaled normal
+                                                // matrix: exact up to the vertex map's
+                                                // finite differences (about 1e-8 relative)
 constexpr double kNullRatio = 1e-9;     // eigenvalue of the scaled normal matrix below which a
                                         // direction is taken as not determined at all
 
@@ -37,6 +44,11 @@ Eigen::MatrixXd pseudoInverse(const Eigen::MatrixXd& a, std::vector<Eigen::Vecto
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(scaled);
   const Eigen::VectorXd& lambda = eigen.eigenvalues();
   const double largest = lambda.maxCoeff();
+  spdlog::debug("uncertainty: the scaled normal matrix's smallest eigenvalues relative to its "
+                "largest: {:.3g}",
+                fmt::join(std::vector<double>(lambda.data(), lambda.data() + std::min<Eigen::Index>(n, 4)) |
+                              std::views::transform([&](double l) { return l / largest; }),
+                          ", "));
   Eigen::VectorXd inverse(n);
   for (Eigen::Index k = 0; k < n; ++k) {
     const bool dropped = !(lambda(k) > kNullRatio * largest);
@@ -47,6 +59,66 @@ Eigen::MatrixXd pseudoInverse(const Eigen::MatrixXd& a, std::vector<Eigen::Vecto
     if (s(k) == 0.0) null.push_back(Eigen::VectorXd::Unit(n, k));  // a parameter nothing sees
   return s.asDiagonal() * eigen.eigenvectors() * inverse.asDiagonal() *
          eigen.eigenvectors().transpose() * s.asDiagonal();
+}
+
+// The directions of the parameters `indices` along which no vertex of the
+// posed part moves in any of `radiographs`: pose and dimensions that
+// describe the same placed part, which no radiograph can tell apart. The
+// wedge's four pocket edges, measured from a centre line the part does not
+// show, are the standing example: moving them all one way and the part the
+// other leaves every vertex where it was. The image Jacobian sees such a
+// direction only blurred by its finite differences over point samples (on
+// the wedge its eigenvalue came out 0.3 % of the largest, as large as the
+// genuine ones), so it is found from the vertex velocities, which are exact.
+// Returns orthonormal columns in the parameters' own units; empty when there
+// are none or the velocities cannot be evaluated.
+Eigen::MatrixXd geometricNullSpace(ForwardModel& model, std::span<const double> theta,
+                                   std::span<const int> indices, std::span<const int> radiographs) {
+  const auto n = static_cast<Eigen::Index>(indices.size());
+  const auto vertices = static_cast<Eigen::Index>(model.part().vertexCount());
+  Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(n, n);  // M^T M of the stacked velocities
+  std::vector<int> moving;
+  std::vector<Vec3> velocities;
+  std::vector<bool> geometric(indices.size(), false);
+  for (int r : radiographs) {
+    if (!model.poseVelocities(theta, indices, r, moving, velocities)) return {};
+    Eigen::MatrixXd m(3 * vertices, static_cast<Eigen::Index>(moving.size()));
+    for (size_t k = 0; k < moving.size(); ++k) {
+      geometric[static_cast<size_t>(moving[k])] = true;
+      for (Eigen::Index v = 0; v < vertices; ++v)
+        m.block<3, 1>(3 * v, static_cast<Eigen::Index>(k)) =
+            velocities[k * static_cast<size_t>(vertices) + static_cast<size_t>(v)];
+    }
+    const Eigen::MatrixXd mm = m.transpose() * m;
+    for (size_t i = 0; i < moving.size(); ++i)
+      for (size_t j = 0; j < moving.size(); ++j)
+        normal(moving[i], moving[j]) += mm(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j));
+  }
+  // Over the parameters that move something, scaled to a unit diagonal.
+  std::vector<Eigen::Index> cols;
+  for (Eigen::Index k = 0; k < n; ++k)
+    if (geometric[static_cast<size_t>(k)] && normal(k, k) > 0.0) cols.push_back(k);
+  const auto g = static_cast<Eigen::Index>(cols.size());
+  if (g == 0) return {};
+  Eigen::MatrixXd scaled(g, g);
+  Eigen::VectorXd s(g);
+  for (Eigen::Index i = 0; i < g; ++i) s(i) = 1.0 / std::sqrt(normal(cols[i], cols[i]));
+  for (Eigen::Index i = 0; i < g; ++i)
+    for (Eigen::Index j = 0; j < g; ++j) scaled(i, j) = normal(cols[i], cols[j]) * s(i) * s(j);
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(scaled);
+  const double largest = eigen.eigenvalues().maxCoeff();
+  std::vector<Eigen::VectorXd> found;
+  for (Eigen::Index k = 0; k < g; ++k) {
+    if (!(eigen.eigenvalues()(k) < kGeometricNullRatio * largest)) continue;
+    Eigen::VectorXd direction = Eigen::VectorXd::Zero(n);
+    for (Eigen::Index i = 0; i < g; ++i) direction(cols[i]) = s(i) * eigen.eigenvectors()(i, k);
+    found.push_back(direction);
+  }
+  if (found.empty()) return {};
+  Eigen::MatrixXd basis(n, static_cast<Eigen::Index>(found.size()));
+  for (size_t k = 0; k < found.size(); ++k) basis.col(static_cast<Eigen::Index>(k)) = found[k];
+  return Eigen::HouseholderQR<Eigen::MatrixXd>(basis).householderQ() *
+         Eigen::MatrixXd::Identity(n, basis.cols());
 }
 
 // A re-simulation with one influence moved by its standard uncertainty.
@@ -76,6 +148,19 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     const auto block = jacobian.middleRows(i, rows);
     a.noalias() += block.transpose() * w.segment(i, rows).asDiagonal() * block;
   }
+  // Directions no radiograph can see are taken out of A (and below of B
+  // and of every influence's shift), so that the pseudo-inverse drops them
+  // exactly and the dimensions along them are reported as not identifiable.
+  std::vector<int> radiographs;
+  for (const ResidualSegment& s : fit.segments) radiographs.push_back(s.radiograph);
+  const Eigen::MatrixXd unseen = geometricNullSpace(model, theta, fit.indices, radiographs);
+  Eigen::MatrixXd project = Eigen::MatrixXd::Identity(n, n);
+  if (unseen.cols() > 0) {
+    project -= unseen * unseen.transpose();
+    a = project * a * project;
+    spdlog::debug("uncertainty: {} direction(s) of the parameters move no vertex of the part",
+                  unseen.cols());
+  }
   std::vector<Eigen::VectorXd> null;
   const Eigen::MatrixXd a_inverse = pseudoInverse(a, null);
 
@@ -96,6 +181,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       }
     b.noalias() += scores * scores.transpose();
   }
+  b = project * b * project;
   const double small_sample =
       static_cast<double>(m) / static_cast<double>(std::max<Eigen::Index>(1, m - n));
   const Eigen::MatrixXd statistical = small_sample * a_inverse * b * a_inverse;
@@ -114,8 +200,6 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   // only the influence's shift remains. At 512 pixels the 1024^2 demo's
   // slot_width (a 4 mm slot, 19 pixels there) got a U of 0.021 mm where 50
   // Monte Carlo repetitions spread by 0.008 (2 s); at 1024 its U is 0.002.
-  std::vector<int> radiographs;
-  for (const ResidualSegment& s : fit.segments) radiographs.push_back(s.radiograph);
   const bool robust = model.job().loss == LossKind::kMeanAbsolute;
   const int level = std::max(fit.level, model.levelForWidth(kResolveWidthPx));
   const int samples = fit.samples;
@@ -147,6 +231,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       const auto i = static_cast<size_t>(fit.indices[static_cast<size_t>(k)]);
       influence.delta_theta(k) = solved[i] - reference[i];
     }
+    influence.delta_theta = project * influence.delta_theta;
     influences.push_back(std::move(influence));
   };
   const MeasurementInputs& inputs = model.inputs();
@@ -331,7 +416,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     combination.expression = expression;
     bool identifiable = true;
     for (const Eigen::VectorXd& v : null)
-      identifiable &= std::abs(t.dot(v)) < 1e-3 * t.cwiseAbs().dot(v.cwiseAbs());
+      identifiable &= std::abs(t.dot(v)) < 1e-3 * t.norm() * v.norm();  // as a dimension's test
     combination.expanded =
         identifiable ? budget.coverage_factor * std::sqrt(std::max(0.0, t.dot(total * t))) : 0.0;
     if (at.size() == 2) declared_pairs.push_back(at);

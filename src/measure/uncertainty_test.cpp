@@ -420,8 +420,11 @@ TEST_F(Uncertainty, TwoEdgesThatMoveWithThePartAreReportedAsTheirSum) {
       if (c.name == name) return &c;
     return nullptr;
   };
-  // Either the single edges are not identifiable, or their U dwarfs the
-  // width's: in both cases the sum is reported with a small U, once.
+  // The single edges are not identifiable (found from the vertex
+  // velocities: the image Jacobian's finite differences blur the direction);
+  // their sum is reported with a small U, once.
+  EXPECT_FALSE(u["left"].has_value());
+  EXPECT_FALSE(u["right"].has_value());
   const MeasurableCombination* sum = named("width");
   ASSERT_NE(sum, nullptr) << "no combination width";
   EXPECT_EQ(sum->expression, "left + right");
@@ -431,10 +434,6 @@ TEST_F(Uncertainty, TwoEdgesThatMoveWithThePartAreReportedAsTheirSum) {
   EXPECT_NEAR(sum->value, 20.6, std::max(sum->expanded, 2e-3));
   EXPECT_GT(sum->expanded, 0.0);
   EXPECT_LT(sum->expanded, 0.1);
-  for (const char* edge : {"left", "right"})
-    if (u[edge]) {
-      EXPECT_GT(*u[edge], 5.0 * sum->expanded) << edge;
-    }
   // 2 size_y - 2 size_z: its value, and a U between what the two sides'
   // errors would give fully correlated and fully anticorrelated.
   const MeasurableCombination* section = named("section");

@@ -148,6 +148,11 @@ class ForwardModel {
   std::vector<Segment2> outline(std::span<const double> theta, int radiograph);
   // The scatter as simulate() adds it (requires job().scatter.enabled()).
   ScatterEstimate scatter(std::span<const double> theta, int radiograph, int level);
+  // d(world vertices)/d theta[indices[k]] of `radiograph`, for the vertex
+  // parameters among `indices` (not the material's); `moving` gets the
+  // positions in `indices` of those that move some vertex.
+  bool poseVelocities(std::span<const double> theta, std::span<const int> indices,
+                      int radiograph, std::vector<int>& moving, std::vector<Vec3>& velocities);
 
  private:
   // Poses the part for `radiograph` into world_vertices_; the reason when
@@ -161,11 +166,6 @@ class ForwardModel {
   ScatterEstimate spreadOf(const Image& coarse, int coarse_level, int radiograph, int level,
                            bool derivative) const;
   int scatterLevel(int level) const { return std::max(level, levelForWidth(128)); }
-  // d(world vertices)/d theta[indices[k]] of `radiograph`, for the vertex
-  // parameters among `indices` (not the material's); `moving` gets the
-  // positions in `indices` of those that move some vertex.
-  bool poseVelocities(std::span<const double> theta, std::span<const int> indices,
-                      int radiograph, std::vector<int>& moving, std::vector<Vec3>& velocities);
   Image simulatePosed(const WorldMesh& mesh, int radiograph, int level, int samples,
                       const PixelRect& region);
   // Calls use(radiograph, roi, simulated roi) for each of `radiographs`;

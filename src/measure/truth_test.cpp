@@ -33,7 +33,8 @@ DatasetTruth tabulated() {
 double largestError(const ExponentialSum& fitted, const DatasetTruth& truth, double up_to_mm) {
   double worst = 0.0;
   for (size_t i = 0; i < truth.path_mm.size() && truth.path_mm[i] <= up_to_mm; ++i)
-    worst = std::max(worst, std::abs(fitted.transmission(truth.path_mm[i]) - truth.transmission[i]));
+    worst =
+        std::max(worst, std::abs(fitted.transmission(truth.path_mm[i]) - truth.transmission[i]));
   return worst;
 }
 
@@ -41,8 +42,7 @@ TEST(TrueCurve, FitsThePathsTheShotsShowToFarBelowTheNoise) {
   const DatasetTruth truth = tabulated();
   const ExponentialSum fitted = fitTrueCurve(truth, 22.0);
   EXPECT_LE(largestError(fitted, truth, 22.0), 1e-4);
-  EXPECT_NE(fitted.description().find("over 0-22.0 mm"), std::string::npos)
-      << fitted.description();
+  EXPECT_NE(fitted.description().find("over 0-22.0 mm"), std::string::npos) << fitted.description();
 }
 
 TEST(TrueCurve, OneFitOfThreeTermsOverTheWholeTableMissesTheThinPaths) {

@@ -266,6 +266,42 @@ TEST_F(Hostile, AStudyWithPreviousFramesSubtractsEachShotsLag) {
   EXPECT_FALSE(result["radiographs"][0].contains("lag"));
 }
 
+// A study's "lag_fraction" is the lab's known lag: written into the study's
+// machine, subtracted as stated (no estimate), refused out of range or
+// without previous frames to subtract it from.
+TEST_F(Hostile, AStudysStatedLagIsSubtractedAsStated) {
+  write("machine.json", kTinyMachine);
+  std::string recipe = tinyRecipe();
+  const std::string noise = R"("photons_per_open_pixel": 20000)";
+  recipe.replace(recipe.find(noise), noise.size(), noise + R"(, "ghost_fraction": 0.01)");
+  ASSERT_EQ(run("simulate " + write("recipe.json", recipe) + " -o " + out("ds") + " -q").status, 0);
+  const std::string study = "study " + out("ds") + " -o " + out("study") + " -q --limit 1 -s ";
+  std::string settings = tinySettings();
+  settings.insert(1, R"("previous_frames": true, "lag_fraction": 0.0125, )");
+  const CommandResult r = run(study + write("settings.json", settings));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto machine = nlohmann::json::parse(readText(out("study/machine.json")));
+  EXPECT_DOUBLE_EQ(machine["detector"]["lag_fraction"].get<double>(), 0.0125);
+  const auto result = nlohmann::json::parse(readText(out("study/runs/t00-t01/result.json")));
+  const auto& lag = result["radiographs"][1]["lag"];
+  EXPECT_EQ(lag["source"], "machine") << lag;
+  EXPECT_DOUBLE_EQ(lag["fraction"].get<double>(), 0.0125);
+
+  std::string high = tinySettings();
+  high.insert(1, R"("previous_frames": true, "lag_fraction": 0.7, )");
+  const CommandResult refused = run(study + write("high.json", high));
+  EXPECT_NE(refused.status, 0);
+  EXPECT_NE(refused.output.find("high.json: /lag_fraction: expected a number from 0 to 0.5"),
+            std::string::npos)
+      << refused.output;
+  std::string alone = tinySettings();
+  alone.insert(1, R"("lag_fraction": 0.01, )");
+  const CommandResult without = run(study + write("alone.json", alone));
+  EXPECT_NE(without.status, 0);
+  EXPECT_NE(without.output.find("only subtracted with \"previous_frames\": true"), std::string::npos)
+      << without.output;
+}
+
 // Item 5: a study run again with other settings used to return the old
 // numbers; a damaged run file stopped a resume with the library's message.
 TEST_F(Hostile, StudyNeverReusesResultsOfOtherSettings) {

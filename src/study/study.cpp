@@ -339,10 +339,34 @@ std::string StudySummary::table() const {
   return out;
 }
 
+namespace {
+
+// A study's "lag_fraction": the detector's lag as the lab knows it (from
+// earlier pairs, or its panel's data sheet), written into the study's
+// machine so that every run subtracts it instead of estimating it from each
+// shot and its previous frame (which cannot be told where the previous
+// frame's edges all fall in this shot's shadow, as with small rotations).
+void applyStudyLag(nlohmann::json& settings, nlohmann::json& machine,
+                   const fs::path& settings_file) {
+  const auto it = settings.find("lag_fraction");
+  if (it == settings.end()) return;
+  const std::string where = settings_file.string() + ": /lag_fraction";
+  if (!it->is_number()) fail("{}: expected a number from 0 to 0.5", where);
+  const double lag = it->get<double>();
+  if (!(lag >= 0.0 && lag <= 0.5)) fail("{}: expected a number from 0 to 0.5, got {}", where, lag);
+  if (!settings.value("previous_frames", false))
+    fail("{}: a lag is only subtracted with \"previous_frames\": true", where);
+  machine["detector"]["lag_fraction"] = lag;
+  settings.erase("lag_fraction");
+}
+
+}  // namespace
+
 StudySummary runStudy(const StudyOptions& options) {
-  const DatasetTruth truth = DatasetTruth::load(options.dataset / "truth.json");
+  DatasetTruth truth = DatasetTruth::load(options.dataset / "truth.json");
   const ConfigNode settings_node = ConfigNode::loadFile(options.settings);
   nlohmann::json settings = settings_node.json();
+  applyStudyLag(settings, truth.machine, options.settings);
   createOutputFolder(options.output / "runs");
 
   // The part and the machine from the dataset, the material from the

@@ -138,6 +138,12 @@ TEST_F(Cli, RegionOutsideTheDetector) {
                      "outside the 128x96 detector");
 }
 
+TEST_F(Cli, EdgeSamplesNotAboveTheSamples) {
+  const std::string machine = write("machine.json", kMachine);
+  expectCleanFailure(run(renderArgs(kRoot + "/parts/cuboid.json", machine, "-n 4 --edge-samples 4")),
+                     "edge samples per pixel axis must be 0 or from 5 to 32, got 4");
+}
+
 TEST_F(Cli, MissingMaterialForIntensity) {
   const std::string machine = write("machine.json", kMachine);
   const CommandResult r =

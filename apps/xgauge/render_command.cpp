@@ -57,6 +57,11 @@ void addRenderCommand(CLI::App& app, RenderArguments& args) {
   CLI::App* cmd = app.add_subcommand(
       "render", "Simulate one radiograph of a part model (intensity or path length)");
   addSceneOptions(cmd, args);
+  cmd->add_option(
+         "--edge-samples", args.edge_samples,
+         "Sample again with m x m (more than n, up to 32) the pixels where the n x n image "
+         "bends (walls seen edge-on, silhouettes); 0: off")
+      ->check(CLI::Range(0, 32));
   cmd->add_option("--material", args.material, "Material (JSON); required for intensity");
   cmd->add_option("--quantity", args.quantity, "intensity or path (path length in mm)")
       ->check(CLI::IsMember({"intensity", "path"}));
@@ -106,6 +111,7 @@ Pose scenePose(const RenderArguments& args) {
 RenderOptions sceneOptions(const RenderArguments& args) {
   RenderOptions options;
   options.samples_per_axis = args.samples;
+  options.edge_samples_per_axis = args.edge_samples;
   if (args.region.size() == 4)
     options.region = {args.region[0], args.region[1], args.region[2], args.region[3]};
   return options;

@@ -21,6 +21,7 @@ struct RenderArguments {
   std::string quantity = "intensity";  // intensity | path
   std::string format = "f32";          // u16 | f32
   int samples = 1;
+  int edge_samples = 0;  // render only: refine pixels where the image bends (RenderOptions)
   std::vector<int> region;  // x y width height
   std::string output;       // TIFF
   std::string png;          // optional preview

@@ -2,6 +2,8 @@
 
 #include "footprint.h"
 
+#include "xgauge/core/error.h"
+
 #include <algorithm>
 #include <limits>
 #include <tbb/enumerable_thread_specific.h>
@@ -63,6 +65,140 @@ template <typename T, typename Shade>
 void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
                           double background, Shade shade, ImageT<T>& out);
 
+// Runs [first, last] of refined pixels (detector coordinates) along each
+// pixel row and each pixel column of a region.
+struct RefinedRuns {
+  PixelRect region;
+  std::vector<std::vector<std::pair<int, int>>> rows, columns;
+  const std::vector<std::pair<int, int>>& row(int v) const {
+    return rows[static_cast<size_t>(v - region.y)];
+  }
+  const std::vector<std::pair<int, int>>& column(int u) const {
+    return columns[static_cast<size_t>(u - region.x)];
+  }
+};
+
+// The pixels of `region` to refine: those where `image` (covering `wide`,
+// which holds `region` and 2 pixels around it where the detector has them)
+// bends by more than `threshold` along a row or a column, and their four
+// neighbours.
+template <typename T>
+RefinedRuns bentPixels(const ImageT<T>& image, const PixelRect& wide, const PixelRect& region,
+                       double threshold) {
+  const int w = wide.width, h = wide.height;
+  std::vector<uint8_t> bent(static_cast<size_t>(w) * static_cast<size_t>(h), 0);
+  tbb::parallel_for(0, h, [&](int y) {
+    for (int x = 0; x < w; ++x) {
+      const double c = 2.0 * static_cast<double>(image(x, y));
+      bool b = x > 0 && x + 1 < w &&
+               std::abs(static_cast<double>(image(x - 1, y)) - c +
+                        static_cast<double>(image(x + 1, y))) > threshold;
+      b = b || (y > 0 && y + 1 < h &&
+                std::abs(static_cast<double>(image(x, y - 1)) - c +
+                         static_cast<double>(image(x, y + 1))) > threshold);
+      bent[static_cast<size_t>(y) * static_cast<size_t>(w) + static_cast<size_t>(x)] = b;
+    }
+  });
+  const auto at = [&](int u, int v) {  // detector coordinates, inside `wide`
+    const int x = u - wide.x, y = v - wide.y;
+    if (x < 0 || y < 0 || x >= w || y >= h) return false;
+    return bent[static_cast<size_t>(y) * static_cast<size_t>(w) + static_cast<size_t>(x)] != 0;
+  };
+  const auto refined = [&](int u, int v) {
+    return at(u, v) || at(u - 1, v) || at(u + 1, v) || at(u, v - 1) || at(u, v + 1);
+  };
+  RefinedRuns runs{region, {}, {}};
+  runs.rows.resize(static_cast<size_t>(region.height));
+  runs.columns.resize(static_cast<size_t>(region.width));
+  for (int v = region.y; v < region.bottom(); ++v)
+    for (int u = region.x; u < region.right(); ++u) {
+      if (!refined(u, v)) continue;
+      auto& row = runs.rows[static_cast<size_t>(v - region.y)];
+      if (!row.empty() && row.back().second == u - 1) row.back().second = u;
+      else row.emplace_back(u, u);
+      auto& column = runs.columns[static_cast<size_t>(u - region.x)];
+      if (!column.empty() && column.back().second == v - 1) column.back().second = v;
+      else column.emplace_back(v, v);
+    }
+  return runs;
+}
+
+// The refined pixels of `runs` sampled with m x m samples into `image`
+// (covering `wide`). The same walk as the plain render (bands, triangles in
+// mesh order per sample), restricted to the refined pixels' samples.
+template <typename T, typename Shade>
+void refinePixels(const Machine& machine, const WorldMesh& mesh, int m, const RefinedRuns& runs,
+                  const PixelRect& wide, Shade shade, ImageT<T>& image) {
+  thread_local SceneSetup scratch;
+  SceneSetup& scene = scratch;
+  setupMesh(machine, mesh, m, runs.region, scene);
+  if (scene.empty()) return;
+  const Footprint f = layoutFootprint(scene, m);
+  const SampleDistances distances = sampleDistances(machine, f);
+  const size_t width = static_cast<size_t>(f.width());
+  const double inv_samples = 1.0 / (m * m);
+  // Sample columns (or rows) [lo, hi] of pixel run `r`, within [k0, k1].
+  const auto clip = [m](const std::pair<int, int>& r, int k0, int k1, int& lo, int& hi) {
+    lo = std::max(k0, r.first * m), hi = std::min(k1, r.second * m + m - 1);
+    return lo <= hi;
+  };
+  tbb::enumerable_thread_specific<std::vector<double>> buffers;
+  tbb::parallel_for(size_t{0}, f.bands.size(), [&](size_t b) {
+    const Band& band = f.bands[b];
+    std::vector<double>& sum = buffers.local();
+    sum.resize(std::max(sum.size(), static_cast<size_t>(band.row_end - band.row_begin) * width));
+    int lo = 0, hi = 0;
+    for (int r = band.row_begin; r < band.row_end; ++r)
+      for (const auto& run : runs.row(r / m))
+        if (clip(run, f.col_begin, f.col_end - 1, lo, hi))
+          std::fill(sum.begin() + static_cast<ptrdiff_t>(static_cast<size_t>(r - band.row_begin) * width +
+                                                         static_cast<size_t>(lo - f.col_begin)),
+                    sum.begin() + static_cast<ptrdiff_t>(static_cast<size_t>(r - band.row_begin) * width +
+                                                         static_cast<size_t>(hi + 1 - f.col_begin)),
+                    0.0);
+    for (uint32_t i : f.bins[b]) {
+      const TriangleSetup& t = scene.triangles[i];
+      const double sigma = t.sigma;
+      raster::forEachSpan(t, band.row_begin, band.row_end, [&](int line, int k0, int k1) {
+        if (t.by_rows) {
+          const double across = t.gy * ((line + 0.5) - t.y[0]);
+          double* row = sum.data() + static_cast<size_t>(line - band.row_begin) * width;
+          for (const auto& run : runs.row(line / m))
+            if (clip(run, k0, k1, lo, hi))
+              for (int k = lo; k <= hi; ++k)
+                row[k - f.col_begin] += sigma / t.magnification(t.gx * ((k + 0.5) - t.x[0]), across);
+        } else {
+          const double across = t.gx * ((line + 0.5) - t.x[0]);
+          double* column = sum.data() + (line - f.col_begin);
+          for (const auto& run : runs.column(line / m))
+            if (clip(run, k0, k1, lo, hi))
+              for (int k = lo; k <= hi; ++k)
+                column[static_cast<size_t>(k - band.row_begin) * width] +=
+                    sigma / t.magnification(across, t.gy * ((k + 0.5) - t.y[0]));
+        }
+      });
+    }
+    for (int v = band.row_begin / m; v < band.row_end / m; ++v)
+      for (const auto& run : runs.row(v))
+        for (int u = std::max(run.first, f.col_begin / m); u <= std::min(run.second, f.col_end / m - 1);
+             ++u) {
+          double value = 0.0;
+          for (int j = 0; j < m; ++j) {
+            const int sample_row = v * m + j;
+            const double py2d2 = distances.py2d2(sample_row);
+            const double* s = sum.data() + static_cast<size_t>(sample_row - band.row_begin) * width;
+            for (int i = 0; i < m; ++i) {
+              const size_t k = static_cast<size_t>(u * m + i - f.col_begin);
+              const double path =
+                  s[k] == 0.0 ? 0.0 : std::max(0.0, s[k] * std::sqrt(distances.px2[k] + py2d2));
+              value += shade(path);
+            }
+          }
+          image(u - wide.x, v - wide.y) = static_cast<T>(value * inv_samples);
+        }
+  });
+}
+
 // Renders value(path_mm) averaged over each pixel's samples into `out`.
 // Isolated: while this thread waits inside its parallel loops it must not pick
 // up an unrelated render (say, another measurement of a study) that would
@@ -70,8 +206,33 @@ void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const R
 template <typename T, typename Shade>
 void renderPixels(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
                   double background, Shade shade, ImageT<T>& out) {
-  tbb::this_task_arena::isolate(
-      [&] { renderPixelsIsolated(machine, mesh, options, background, shade, out); });
+  const int n = options.samples_per_axis, m = options.edge_samples_per_axis;
+  if (m != 0 && (m <= n || m > 32))
+    fail("edge samples per pixel axis must be 0 or from {} to 32, got {}", n + 1, m);
+  if (m != 0 && !(options.edge_threshold > 0.0))
+    fail("the edge threshold must be positive, got {}", options.edge_threshold);
+  if (m == 0 || mesh.csg) {
+    tbb::this_task_arena::isolate(
+        [&] { renderPixelsIsolated(machine, mesh, options, background, shade, out); });
+    return;
+  }
+  // n x n over the region and 2 pixels around it (so that a region's bend
+  // test sees what a full render's does), then m x m where it bends.
+  const PixelRect region = resolveRegion(machine, options);
+  const PixelRect wide =
+      PixelRect{region.x - 2, region.y - 2, region.width + 4, region.height + 4}.intersect(
+          machine.detectorRect());
+  RenderOptions plain = options;
+  plain.region = wide;
+  ImageT<T> image;
+  tbb::this_task_arena::isolate([&] {
+    renderPixelsIsolated(machine, mesh, plain, background, shade, image);
+    const RefinedRuns runs = bentPixels(image, wide, region, options.edge_threshold);
+    refinePixels(machine, mesh, m, runs, wide, shade, image);
+  });
+  out.resize(region.width, region.height);
+  for (int y = 0; y < region.height; ++y)
+    std::copy_n(image.row(y + region.y - wide.y) + (region.x - wide.x), region.width, out.row(y));
 }
 
 template <typename T, typename Shade>

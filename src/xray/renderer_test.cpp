@@ -375,6 +375,97 @@ TEST(Renderer, RegionAndThreadCountGiveIdenticalPixels) {
   EXPECT_GT(nonzero, 1000);
 }
 
+// A jaw whose side walls stand along the beam: 2 x 2 point samples see each
+// wall only where it passes a sample column, so the image moves in steps as
+// the width grows; with the bent pixels refined at 16 x 16 it follows the
+// width in steps 8 times finer, and it comes close to a 16 x 16 render
+// everywhere, while 2 x 2 alone does not.
+TEST(Renderer, EdgeRefinementApproachesTheFinelySampledImage) {
+  const PartModel jaw = PartModel::load(kParts + "prism_jaw.json");
+  const auto material = ExponentialSum({{0.6, 0.03}, {0.3, 0.08}, {0.1, 0.3}});
+  const auto table = TransmissionTable::forMaterial(material, 100.0);
+  const Machine m = squareMachine(256, 0.4);
+  // Part x along detector columns, the profile's walls parallel to the beam
+  // near the principal point.
+  const Pose pose = Pose::fromEulerDeg(Vec3(0, 0, 0), Vec3(-10.5, -20.0, 600.0));
+  const TriangleMesh mesh = jaw.mesh(jaw.nominalValues());
+  std::vector<Vec3> world;
+  const WorldMesh w = posed(mesh, pose, world);
+  RenderOptions coarse, refined, fine;
+  coarse.samples_per_axis = refined.samples_per_axis = 2;
+  refined.edge_samples_per_axis = fine.samples_per_axis = 16;
+  ImageT<double> a, b, c;
+  renderIntensity(m, w, table, coarse, a);
+  renderIntensity(m, w, table, refined, b);
+  renderIntensity(m, w, table, fine, c);
+  double coarse_error = 0.0, refined_error = 0.0;
+  for (size_t k = 0; k < c.pixels().size(); ++k) {
+    coarse_error = std::max(coarse_error, std::abs(a.pixels()[k] - c.pixels()[k]));
+    refined_error = std::max(refined_error, std::abs(b.pixels()[k] - c.pixels()[k]));
+  }
+  EXPECT_GT(coarse_error, 0.02);
+  // What is left: pixels whose bend stays below the threshold (1e-3), whose
+  // 2 x 2 error is of that order.
+  EXPECT_LT(refined_error, 2e-3);
+
+  // The right wall on the principal ray, seen edge-on along its whole
+  // height; the image sum against the width in steps of 1/64 of a pixel at
+  // the part: 2 x 2 moves only where the wall passes one of the 2 sample
+  // columns of a pixel, refined at 16 x 16 where it passes one of 16.
+  const double nominal = jaw.nominalValues()[static_cast<size_t>(jaw.dimensionIndex("width"))];
+  const Pose on_axis = Pose::fromEulerDeg(Vec3(0, 0, 0), Vec3(-nominal, -20.0, 600.0));
+  const double pixel_at_part = 0.4 * (1000.0 - 600.0) / 1000.0;
+  int coarse_moves = 0, refined_moves = 0;
+  double coarse_previous = 0.0, refined_previous = 0.0;
+  for (int step = 0; step <= 64; ++step) {
+    const TriangleMesh wider = jaw.mesh(jaw.values({{"width", nominal + pixel_at_part * step / 64.0}}));
+    const WorldMesh ww = posed(wider, on_axis, world);
+    renderIntensity(m, ww, table, coarse, a);
+    renderIntensity(m, ww, table, refined, b);
+    double sa = 0.0, sb = 0.0;
+    for (size_t k = 0; k < a.pixels().size(); ++k) sa += a.pixels()[k], sb += b.pixels()[k];
+    if (step > 0) {
+      coarse_moves += std::abs(sa - coarse_previous) > 1e-6;
+      refined_moves += std::abs(sb - refined_previous) > 1e-6;
+    }
+    coarse_previous = sa, refined_previous = sb;
+  }
+  EXPECT_LE(coarse_moves, 4);
+  EXPECT_GE(refined_moves, 14);
+}
+
+TEST(Renderer, EdgeRefinementKeepsRegionsAndThreadCountsIdentical) {
+  const PartModel jaw = PartModel::load(kParts + "prism_jaw.json");
+  const TriangleMesh mesh = jaw.mesh(jaw.nominalValues());
+  const Machine m = squareMachine(300, 0.3);
+  const Pose pose = Pose::fromEulerDeg(Vec3(3, 20, -2), Vec3(-8, -15, 500));
+  std::vector<Vec3> world;
+  const WorldMesh w = posed(mesh, pose, world);
+  RenderOptions options;
+  options.samples_per_axis = 2;
+  options.edge_samples_per_axis = 8;
+  options.edge_threshold = 0.05;  // mm of path
+  ImageT<double> full, one_thread, part, plain;
+  renderPathLength(m, w, options, full);
+  {
+    ThreadLimit limit(1);
+    renderPathLength(m, w, options, one_thread);
+  }
+  EXPECT_TRUE(std::equal(full.pixels().begin(), full.pixels().end(), one_thread.pixels().begin()));
+  options.region = {97, 61, 120, 150};
+  renderPathLength(m, w, options, part);
+  for (int y = 0; y < part.height(); ++y)
+    for (int x = 0; x < part.width(); ++x) ASSERT_EQ(part(x, y), full(x + 97, y + 61));
+  options.region = {};
+  options.edge_samples_per_axis = 0;
+  renderPathLength(m, w, options, plain);
+  int changed = 0;
+  for (size_t k = 0; k < full.pixels().size(); ++k) changed += full.pixels()[k] != plain.pixels()[k];
+  EXPECT_GT(changed, 100);  // the refinement did something
+  options.edge_samples_per_axis = 2;  // not more than n
+  EXPECT_THROW(renderPathLength(m, w, options, plain), Error);
+}
+
 TEST(Renderer, RejectsPartsOutsideTheBeamAndBadOptions) {
   const Machine m = squareMachine(64, 0.5);
   const TriangleMesh box = cuboid(10, 10, 10);

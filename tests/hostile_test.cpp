@@ -95,11 +95,18 @@ std::vector<std::string> temporaries(const fs::path& folder) {
 
 class Hostile : public Cli {
  protected:
-  // Simulates the tiny lab into dir/ds.
-  void simulateTinyLab() {
+  // Simulates the tiny lab into dir/ds; `lag`: the fraction of each exposure
+  // the next one records.
+  void simulateTinyLab(double lag = 0.0) {
     write("machine.json", kTinyMachine);
-    const CommandResult r = run("simulate " + write("recipe.json", tinyRecipe()) + " -o " +
-                                out("ds") + " -q");
+    std::string recipe = tinyRecipe();
+    if (lag > 0.0) {
+      const std::string noise = R"("photons_per_open_pixel": 20000)";
+      recipe.replace(recipe.find(noise), noise.size(),
+                     noise + fmt::format(R"(, "ghost_fraction": {})", lag));
+    }
+    const CommandResult r =
+        run("simulate " + write("recipe.json", recipe) + " -o " + out("ds") + " -q");
     ASSERT_EQ(r.status, 0) << r.output;
   }
   // A measurement job over t00 and t01 of the tiny lab; `dimensions` and
@@ -246,11 +253,7 @@ TEST_F(Hostile, StudyRunsTakeTheScatterTheirMaterialCarries) {
 // With "previous_frames", each shot but the first names the one exposed
 // before it, and its lag (1 % in this lab) is estimated and subtracted.
 TEST_F(Hostile, AStudyWithPreviousFramesSubtractsEachShotsLag) {
-  write("machine.json", kTinyMachine);
-  std::string recipe = tinyRecipe();
-  const std::string noise = R"("photons_per_open_pixel": 20000)";
-  recipe.replace(recipe.find(noise), noise.size(), noise + R"(, "ghost_fraction": 0.01)");
-  ASSERT_EQ(run("simulate " + write("recipe.json", recipe) + " -o " + out("ds") + " -q").status, 0);
+  simulateTinyLab(0.01);
   std::string settings = tinySettings();
   settings.insert(1, R"("previous_frames": true, )");
   const CommandResult r = run("study " + out("ds") + " -o " + out("study") + " -q --limit 1 -s " +
@@ -270,11 +273,7 @@ TEST_F(Hostile, AStudyWithPreviousFramesSubtractsEachShotsLag) {
 // machine, subtracted as stated (no estimate), refused out of range or
 // without previous frames to subtract it from.
 TEST_F(Hostile, AStudysStatedLagIsSubtractedAsStated) {
-  write("machine.json", kTinyMachine);
-  std::string recipe = tinyRecipe();
-  const std::string noise = R"("photons_per_open_pixel": 20000)";
-  recipe.replace(recipe.find(noise), noise.size(), noise + R"(, "ghost_fraction": 0.01)");
-  ASSERT_EQ(run("simulate " + write("recipe.json", recipe) + " -o " + out("ds") + " -q").status, 0);
+  simulateTinyLab(0.01);
   const std::string study = "study " + out("ds") + " -o " + out("study") + " -q --limit 1 -s ";
   std::string settings = tinySettings();
   settings.insert(1, R"("previous_frames": true, "lag_fraction": 0.0125, )");

@@ -60,6 +60,28 @@ void bandSums(const SceneSetup& scene, const WorldMesh& mesh, const Band& band, 
 }
 
 
+// Mean of shade(path) over the n x n samples of pixel (u, v), from a band's
+// per-sample sums (footprint layout `f`, n = f.n).
+template <typename Shade>
+double pixelMean(const std::vector<double>& sum, const Band& band, const Footprint& f,
+                 const SampleDistances& distances, int u, int v, Shade& shade) {
+  const int n = f.n;
+  const size_t width = static_cast<size_t>(f.width());
+  double value = 0.0;
+  for (int j = 0; j < n; ++j) {
+    const int sample_row = v * n + j;
+    const double py2d2 = distances.py2d2(sample_row);
+    const double* s = sum.data() + static_cast<size_t>(sample_row - band.row_begin) * width;
+    for (int i = 0; i < n; ++i) {
+      const size_t k = static_cast<size_t>(u * n + i - f.col_begin);
+      const double path =
+          s[k] == 0.0 ? 0.0 : std::max(0.0, s[k] * std::sqrt(distances.px2[k] + py2d2));
+      value += shade(path);
+    }
+  }
+  return value * (1.0 / (n * n));
+}
+
 // (`out` is resized to the region; `background` where the part's footprint is not.)
 template <typename T, typename Shade>
 void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
@@ -136,7 +158,6 @@ void refinePixels(const Machine& machine, const WorldMesh& mesh, int m, const Re
   const Footprint f = layoutFootprint(scene, m);
   const SampleDistances distances = sampleDistances(machine, f);
   const size_t width = static_cast<size_t>(f.width());
-  const double inv_samples = 1.0 / (m * m);
   // Sample columns (or rows) [lo, hi] of pixel run `r`, within [k0, k1].
   const auto clip = [m](const std::pair<int, int>& r, int k0, int k1, int& lo, int& hi) {
     lo = std::max(k0, r.first * m), hi = std::min(k1, r.second * m + m - 1);
@@ -181,21 +202,9 @@ void refinePixels(const Machine& machine, const WorldMesh& mesh, int m, const Re
     for (int v = band.row_begin / m; v < band.row_end / m; ++v)
       for (const auto& run : runs.row(v))
         for (int u = std::max(run.first, f.col_begin / m); u <= std::min(run.second, f.col_end / m - 1);
-             ++u) {
-          double value = 0.0;
-          for (int j = 0; j < m; ++j) {
-            const int sample_row = v * m + j;
-            const double py2d2 = distances.py2d2(sample_row);
-            const double* s = sum.data() + static_cast<size_t>(sample_row - band.row_begin) * width;
-            for (int i = 0; i < m; ++i) {
-              const size_t k = static_cast<size_t>(u * m + i - f.col_begin);
-              const double path =
-                  s[k] == 0.0 ? 0.0 : std::max(0.0, s[k] * std::sqrt(distances.px2[k] + py2d2));
-              value += shade(path);
-            }
-          }
-          image(u - wide.x, v - wide.y) = static_cast<T>(value * inv_samples);
-        }
+             ++u)
+          image(u - wide.x, v - wide.y) =
+              static_cast<T>(pixelMean(sum, band, f, distances, u, v, shade));
   });
 }
 
@@ -266,32 +275,17 @@ void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const R
 
   const Footprint f = layoutFootprint(scene, n);
   const SampleDistances distances = sampleDistances(machine, f);
-  const double inv_samples = 1.0 / (n * n);
   tbb::enumerable_thread_specific<std::vector<double>> buffers;
   tbb::enumerable_thread_specific<raster::CsgScratch> csg_buffers;
   tbb::parallel_for(size_t{0}, f.bands.size(), [&](size_t b) {
     const Band& band = f.bands[b];
     std::vector<double>& sum = buffers.local();
-    const size_t width = static_cast<size_t>(f.width());
     bandSums(scene, mesh, band, f, b, sum, csg_buffers.local());
     // Resolve: path per sample, shade, average over the pixel's samples.
     for (int v = band.row_begin / n; v < band.row_end / n; ++v) {
       T* out_row = out.row(v - region.y);
-      for (int u = f.col_begin / n; u < f.col_end / n; ++u) {
-        double value = 0.0;
-        for (int j = 0; j < n; ++j) {
-          const int sample_row = v * n + j;
-          const double py2d2 = distances.py2d2(sample_row);
-          const double* s = sum.data() + static_cast<size_t>(sample_row - band.row_begin) * width;
-          for (int i = 0; i < n; ++i) {
-            const size_t k = static_cast<size_t>(u * n + i - f.col_begin);
-            const double path = s[k] == 0.0 ? 0.0
-                                             : std::max(0.0, s[k] * std::sqrt(distances.px2[k] + py2d2));
-            value += shade(path);
-          }
-        }
-        out_row[u - region.x] = static_cast<T>(value * inv_samples);
-      }
+      for (int u = f.col_begin / n; u < f.col_end / n; ++u)
+        out_row[u - region.x] = static_cast<T>(pixelMean(sum, band, f, distances, u, v, shade));
     }
   });
 }

@@ -1,8 +1,8 @@
 // Render speed (issue: foundation; CSG parts). Run: build/bench/render_bench
 //
 // Prism jaw (36 triangles) on a 409.6 mm detector at 512^2 .. 4096^2 pixels
-// with 1 and 4x4 samples per pixel, and a finely faceted cylinder of about
-// 100,000 triangles at 2048^2; all on 2 threads, intensity output into a
+// with 1 and 4x4 samples per pixel, with 2 x 2 and edge refinement, and a
+// finely faceted cylinder of about 100,000 triangles at 2048^2; all on 2 threads, intensity output into a
 // preallocated image (the optimiser's use).
 //
 // CSG parts at the jaw's magnification (3.5, part about 713 mm from the
@@ -46,10 +46,12 @@ const TransmissionTable& aluminium() {
 
 // One posed mesh rendered again and again into a preallocated image.
 struct PosedRender {
-  PosedRender(const TriangleMesh& posed_mesh, const Pose& pose, int size, int samples)
+  PosedRender(const TriangleMesh& posed_mesh, const Pose& pose, int size, int samples,
+              int edge_samples = 0)
       : mesh(posed_mesh), machine(detector(size)), image(size, size) {
     poseVertices(pose, posed_mesh.vertices, world);
     options.samples_per_axis = samples;
+    options.edge_samples_per_axis = edge_samples;
   }
   void operator()() {
     renderIntensity(machine, {world, mesh.triangles, mesh.csg.get()}, aluminium(), options, image);
@@ -102,10 +104,9 @@ void BM_Cylinder100k(benchmark::State& state) {
 BENCHMARK(BM_Cylinder100k)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // Median milliseconds of `renders` renders of `mesh` at `pose`.
-// Median milliseconds of `renders` renders of `mesh` at `pose`.
 double medianRenderMs(const TriangleMesh& mesh, const Pose& pose, int size, int samples,
-                      int renders) {
-  PosedRender render(mesh, pose, size, samples);
+                      int renders, int edge_samples = 0) {
+  PosedRender render(mesh, pose, size, samples, edge_samples);
   std::vector<double> ms;
   for (int i = 0; i < renders; ++i) {
     const auto start = std::chrono::steady_clock::now();
@@ -118,6 +119,31 @@ double medianRenderMs(const TriangleMesh& mesh, const Pose& pose, int size, int 
 }
 
 const Pose kJawPose = Pose::fromEulerDeg({4, 17, 2}, {-37.0, -72.0, 713.0});
+
+// The jaw with 2 x 2 samples and its bent pixels refined with m x m
+// (RenderOptions::edge_samples_per_axis), against 2 x 2 alone in the same
+// run (`plain_ms`, `x_plain`). Face on, its walls along the beam as in the
+// replica sessions' first shot.
+void BM_PrismJawEdgeRefined(benchmark::State& state) {
+  const int size = static_cast<int>(state.range(0)), m = static_cast<int>(state.range(1));
+  const PartModel jaw = PartModel::load(kParts + "prism_jaw.json");
+  const TriangleMesh mesh = jaw.mesh(jaw.nominalValues());
+  const Pose pose = Pose::fromEulerDeg({0, 0, 0}, {-40.5, -20.0, 713.5});
+  const double plain_ms = medianRenderMs(mesh, pose, size, 2, 15);
+  const double refined_ms = medianRenderMs(mesh, pose, size, 2, 15, m);
+  PosedRender render(mesh, pose, size, 2, m);
+  for (auto _ : state) {
+    render();
+    benchmark::DoNotOptimize(render.image.pixels().data());
+  }
+  state.counters["plain_ms"] = plain_ms;
+  state.counters["x_plain"] = refined_ms / plain_ms;
+}
+BENCHMARK(BM_PrismJawEdgeRefined)
+    ->ArgNames({"size", "edge"})
+    ->ArgsProduct({{1024, 2048}, {4, 8}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 
 // A CSG part against the prism jaw at the same size, in the same run.
 void csgLoop(benchmark::State& state, const std::string& file, const Pose& pose) {

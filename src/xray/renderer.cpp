@@ -85,7 +85,8 @@ double pixelMean(const std::vector<double>& sum, const Band& band, const Footpri
 // (`out` is resized to the region; `background` where the part's footprint is not.)
 template <typename T, typename Shade>
 void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
-                          double background, Shade shade, ImageT<T>& out);
+                          double background, Shade shade, ImageT<T>& out,
+                          PixelRect* footprint = nullptr);
 
 // Runs [first, last] of refined pixels (detector coordinates) along each
 // pixel row and each pixel column of a region.
@@ -100,17 +101,24 @@ struct RefinedRuns {
   }
 };
 
+// Grown by `by` pixels on every side.
+PixelRect grown(const PixelRect& r, int by) {
+  return {r.x - by, r.y - by, r.width + 2 * by, r.height + 2 * by};
+}
+
 // The pixels of `region` to refine: those where `image` (covering `wide`,
 // which holds `region` and 2 pixels around it where the detector has them)
 // bends by more than `threshold` along a row or a column, and their four
-// neighbours.
+// neighbours. Outside the part's footprint (and 1 pixel around it) the image
+// is the constant background: nothing bends there.
 template <typename T>
 RefinedRuns bentPixels(const ImageT<T>& image, const PixelRect& wide, const PixelRect& region,
-                       double threshold) {
+                       const PixelRect& footprint, double threshold) {
   const int w = wide.width, h = wide.height;
   std::vector<uint8_t> bent(static_cast<size_t>(w) * static_cast<size_t>(h), 0);
-  tbb::parallel_for(0, h, [&](int y) {
-    for (int x = 0; x < w; ++x) {
+  const PixelRect scan = grown(footprint, 1).intersect(wide);
+  tbb::parallel_for(scan.y - wide.y, scan.bottom() - wide.y, [&](int y) {
+    for (int x = scan.x - wide.x; x < scan.right() - wide.x; ++x) {
       const double c = 2.0 * static_cast<double>(image(x, y));
       bool b = x > 0 && x + 1 < w &&
                std::abs(static_cast<double>(image(x - 1, y)) - c +
@@ -129,19 +137,33 @@ RefinedRuns bentPixels(const ImageT<T>& image, const PixelRect& wide, const Pixe
   const auto refined = [&](int u, int v) {
     return at(u, v) || at(u - 1, v) || at(u + 1, v) || at(u, v - 1) || at(u, v + 1);
   };
-  RefinedRuns runs{region, {}, {}};
-  runs.rows.resize(static_cast<size_t>(region.height));
-  runs.columns.resize(static_cast<size_t>(region.width));
-  for (int v = region.y; v < region.bottom(); ++v)
-    for (int u = region.x; u < region.right(); ++u) {
-      if (!refined(u, v)) continue;
-      auto& row = runs.rows[static_cast<size_t>(v - region.y)];
-      if (!row.empty() && row.back().second == u - 1) row.back().second = u;
-      else row.emplace_back(u, u);
-      auto& column = runs.columns[static_cast<size_t>(u - region.x)];
-      if (!column.empty() && column.back().second == v - 1) column.back().second = v;
-      else column.emplace_back(v, v);
+  const int rw = region.width, rh = region.height;
+  std::vector<uint8_t> refine(static_cast<size_t>(rw) * static_cast<size_t>(rh), 0);
+  const PixelRect near = grown(footprint, 2).intersect(region);
+  tbb::parallel_for(near.y - region.y, near.bottom() - region.y, [&](int y) {
+    for (int x = near.x - region.x; x < near.right() - region.x; ++x)
+      refine[static_cast<size_t>(y) * static_cast<size_t>(rw) + static_cast<size_t>(x)] =
+          refined(region.x + x, region.y + y);
+  });
+  const auto runsAlong = [&](int count, size_t start, size_t stride, int first,
+                             std::vector<std::pair<int, int>>& out) {
+    for (int k = 0; k < count; ++k) {
+      if (!refine[start + static_cast<size_t>(k) * stride]) continue;
+      if (!out.empty() && out.back().second == first + k - 1) out.back().second = first + k;
+      else out.emplace_back(first + k, first + k);
     }
+  };
+  RefinedRuns runs{region, {}, {}};
+  runs.rows.resize(static_cast<size_t>(rh));
+  runs.columns.resize(static_cast<size_t>(rw));
+  tbb::parallel_for(0, rh, [&](int y) {
+    runsAlong(rw, static_cast<size_t>(y) * static_cast<size_t>(rw), 1, region.x,
+              runs.rows[static_cast<size_t>(y)]);
+  });
+  tbb::parallel_for(0, rw, [&](int x) {
+    runsAlong(rh, static_cast<size_t>(x), static_cast<size_t>(rw), region.y,
+              runs.columns[static_cast<size_t>(x)]);
+  });
   return runs;
 }
 
@@ -163,10 +185,12 @@ void refinePixels(const Machine& machine, const WorldMesh& mesh, int m, const Re
     lo = std::max(k0, r.first * m), hi = std::min(k1, r.second * m + m - 1);
     return lo <= hi;
   };
-  tbb::enumerable_thread_specific<std::vector<double>> buffers;
   tbb::parallel_for(size_t{0}, f.bands.size(), [&](size_t b) {
     const Band& band = f.bands[b];
-    std::vector<double>& sum = buffers.local();
+    // Kept from render to render: only the refined samples are zeroed and
+    // read, so a buffer of the band's size need not be cleared (at m x m
+    // that would cost more than the refinement).
+    thread_local std::vector<double> sum;
     sum.resize(std::max(sum.size(), static_cast<size_t>(band.row_end - band.row_begin) * width));
     int lo = 0, hi = 0;
     for (int r = band.row_begin; r < band.row_end; ++r)
@@ -235,8 +259,10 @@ void renderPixels(const Machine& machine, const WorldMesh& mesh, const RenderOpt
   plain.region = wide;
   ImageT<T> image;
   tbb::this_task_arena::isolate([&] {
-    renderPixelsIsolated(machine, mesh, plain, background, shade, image);
-    const RefinedRuns runs = bentPixels(image, wide, region, options.edge_threshold);
+    PixelRect footprint;
+    renderPixelsIsolated(machine, mesh, plain, background, shade, image, &footprint);
+    if (footprint.empty()) return;
+    const RefinedRuns runs = bentPixels(image, wide, region, footprint, options.edge_threshold);
     refinePixels(machine, mesh, m, runs, wide, shade, image);
   });
   out.resize(region.width, region.height);
@@ -246,7 +272,7 @@ void renderPixels(const Machine& machine, const WorldMesh& mesh, const RenderOpt
 
 template <typename T, typename Shade>
 void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
-                          double background, Shade shade, ImageT<T>& out) {
+                          double background, Shade shade, ImageT<T>& out, PixelRect* footprint) {
   const PixelRect region = resolveRegion(machine, options);
   const int n = options.samples_per_axis;
   // Per calling thread, reused: an optimiser renders thousands of times. The
@@ -259,6 +285,7 @@ void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const R
     out.resize(region.width, region.height);
 
   const PixelRect footprint_px = raster::footprintPixels(scene, n);
+  if (footprint) *footprint = footprint_px;
   // Background outside the footprint.
   tbb::parallel_for(0, region.height, [&](int y) {
     T* row = out.row(y);

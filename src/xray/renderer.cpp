@@ -60,6 +60,9 @@ void bandSums(const SceneSetup& scene, const WorldMesh& mesh, const Band& band, 
 }
 
 
+// The path length itself, as a shade.
+auto identity = [](double path) { return path; };
+
 // Mean of shade(path) over the n x n samples of pixel (u, v), from a band's
 // per-sample sums (footprint layout `f`, n = f.n).
 template <typename Shade>
@@ -86,7 +89,7 @@ double pixelMean(const std::vector<double>& sum, const Band& band, const Footpri
 template <typename T, typename Shade>
 void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
                           double background, Shade shade, ImageT<T>& out,
-                          PixelRect* footprint = nullptr);
+                          PixelRect* footprint = nullptr, ImageT<double>* mean_path = nullptr);
 
 // Runs [first, last] of refined pixels (detector coordinates) along each
 // pixel row and each pixel column of a region.
@@ -106,10 +109,13 @@ PixelRect grown(const PixelRect& r, int by) {
   return {r.x - by, r.y - by, r.width + 2 * by, r.height + 2 * by};
 }
 
-// The pixels of `region` to refine: those where `image` (covering `wide`,
-// which holds `region` and 2 pixels around it where the detector has them)
-// bends by more than `threshold` along a row or a column, and their four
-// neighbours. Outside the part's footprint (and 1 pixel around it) the image
+// The pixels of `region` to refine: those where the mean path `image`
+// (covering `wide`, which holds `region` and 2 pixels around it where the
+// detector has them) bends by more than `threshold` mm along a row or a
+// column, and their four neighbours. The path is piecewise linear across the
+// detector except at the projections of edges and silhouettes, so its bends
+// are where point samples step; the intensity, a curved function of the
+// path, also bends inside every steep ramp, where 2 x 2 samples are close. Outside the part's footprint (and 1 pixel around it) the image
 // is the constant background: nothing bends there.
 template <typename T>
 RefinedRuns bentPixels(const ImageT<T>& image, const PixelRect& wide, const PixelRect& region,
@@ -257,12 +263,15 @@ void renderPixels(const Machine& machine, const WorldMesh& mesh, const RenderOpt
           machine.detectorRect());
   RenderOptions plain = options;
   plain.region = wide;
-  ImageT<T> image;
+  thread_local ImageT<T> image;  // every pixel is written again, render after render
   tbb::this_task_arena::isolate([&] {
     PixelRect footprint;
-    renderPixelsIsolated(machine, mesh, plain, background, shade, image, &footprint);
+    // Kept from render to render (an optimiser renders thousands of times):
+    // every pixel is written again.
+    thread_local ImageT<double> path;
+    renderPixelsIsolated(machine, mesh, plain, background, shade, image, &footprint, &path);
     if (footprint.empty()) return;
-    const RefinedRuns runs = bentPixels(image, wide, region, footprint, options.edge_threshold);
+    const RefinedRuns runs = bentPixels(path, wide, region, footprint, options.edge_threshold);
     refinePixels(machine, mesh, m, runs, wide, shade, image);
   });
   out.resize(region.width, region.height);
@@ -272,7 +281,8 @@ void renderPixels(const Machine& machine, const WorldMesh& mesh, const RenderOpt
 
 template <typename T, typename Shade>
 void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
-                          double background, Shade shade, ImageT<T>& out, PixelRect* footprint) {
+                          double background, Shade shade, ImageT<T>& out, PixelRect* footprint,
+                          ImageT<double>* mean_path) {
   const PixelRect region = resolveRegion(machine, options);
   const int n = options.samples_per_axis;
   // Per calling thread, reused: an optimiser renders thousands of times. The
@@ -283,21 +293,25 @@ void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const R
   setupMesh(machine, mesh, n, region, scene);
   if (out.width() != region.width || out.height() != region.height)
     out.resize(region.width, region.height);
+  if (mean_path) mean_path->resize(region.width, region.height, 0.0);
 
   const PixelRect footprint_px = raster::footprintPixels(scene, n);
   if (footprint) *footprint = footprint_px;
-  // Background outside the footprint.
-  tbb::parallel_for(0, region.height, [&](int y) {
-    T* row = out.row(y);
-    const int v = region.y + y;
-    if (v < footprint_px.y || v >= footprint_px.bottom()) {
-      std::fill_n(row, region.width, static_cast<T>(background));
-    } else {
-      std::fill_n(row, footprint_px.x - region.x, static_cast<T>(background));
-      std::fill(row + (footprint_px.right() - region.x), row + region.width,
-                static_cast<T>(background));
-    }
-  });
+  // Background outside the footprint (and no path).
+  const auto fillOutside = [&](auto& image, auto value) {
+    tbb::parallel_for(0, region.height, [&](int y) {
+      auto* row = image.row(y);
+      const int v = region.y + y;
+      if (v < footprint_px.y || v >= footprint_px.bottom()) {
+        std::fill_n(row, region.width, value);
+      } else {
+        std::fill_n(row, footprint_px.x - region.x, value);
+        std::fill(row + (footprint_px.right() - region.x), row + region.width, value);
+      }
+    });
+  };
+  fillOutside(out, static_cast<T>(background));
+  if (mean_path) fillOutside(*mean_path, 0.0);
   if (scene.empty()) return;
 
   const Footprint f = layoutFootprint(scene, n);
@@ -311,8 +325,12 @@ void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const R
     // Resolve: path per sample, shade, average over the pixel's samples.
     for (int v = band.row_begin / n; v < band.row_end / n; ++v) {
       T* out_row = out.row(v - region.y);
-      for (int u = f.col_begin / n; u < f.col_end / n; ++u)
+      for (int u = f.col_begin / n; u < f.col_end / n; ++u) {
         out_row[u - region.x] = static_cast<T>(pixelMean(sum, band, f, distances, u, v, shade));
+        if (mean_path)
+          (*mean_path)(u - region.x, v - region.y) =
+              pixelMean(sum, band, f, distances, u, v, identity);
+      }
     }
   });
 }

@@ -39,19 +39,20 @@ struct RenderOptions {
   // Detector pixels to render; an empty rectangle means the whole detector.
   PixelRect region;
   // Edge refinement, m: 0 (off) or more than n, up to 32. A pixel where the
-  // n x n image bends (the second difference across it along a row or a
-  // column exceeds `edge_threshold`: a wall seen edge-on, a silhouette),
-  // and its four neighbours, are sampled again with m x m samples. n x n
-  // point samples see a step in path length only where it passes a sample,
-  // so an edge-on wall moves the image in steps of 1/n pixel; m x m makes
-  // the steps m/n times finer where they occur, at the cost of the pixels
-  // refined. Values are as deterministic as without it, and a region gives
-  // the same pixels as a full render (the bend test looks 2 pixels past
-  // the region). CSG parts are not refined (their n x n image is kept), nor
-  // are renderDiagnostics and the derivatives (xray/derivatives.h).
+  // n x n mean path length bends (its second difference along a row or a
+  // column exceeds `edge_threshold` mm: an edge or a silhouette, where the
+  // path steps or kinks), and its four neighbours, are sampled again with
+  // m x m samples. n x n point samples see a step in path length only where
+  // it passes a sample, so an edge-on wall moves the image in steps of 1/n
+  // pixel; m x m makes the steps m/n times finer where they occur, at the
+  // cost of the pixels refined. Values are as deterministic as without it,
+  // and a region gives the same pixels as a full render (the bend test looks
+  // 2 pixels past the region). CSG parts are not refined (their n x n image
+  // is kept), nor are renderDiagnostics and the derivatives
+  // (xray/derivatives.h).
   int edge_samples_per_axis = 0;
-  // In the rendered quantity's units (intensity, or mm for a path render).
-  double edge_threshold = 1e-3;
+  // mm of path length.
+  double edge_threshold = 0.01;
 };
 
 // A posed mesh: vertices in world coordinates (mm), triangles outward CCW.

@@ -2,8 +2,8 @@
 //
 // Prism jaw (36 triangles) on a 409.6 mm detector at 512^2 .. 4096^2 pixels
 // with 1 and 4x4 samples per pixel, with 2 x 2 and edge refinement, and a
-// finely faceted cylinder of about 100,000 triangles at 2048^2; all on 2 threads, intensity output into a
-// preallocated image (the optimiser's use).
+// finely faceted cylinder of about 100,000 triangles at 2048^2; all on 2
+// threads, intensity output into a preallocated image (the optimiser's use).
 //
 // CSG parts at the jaw's magnification (3.5, part about 713 mm from the
 // detector): the angle bracket (Part 5, two boxes and three holes), the

@@ -25,23 +25,30 @@ using raster::setupMesh;
 namespace {
 
 // Adds sigma / m over one triangle's spans inside a band to `sum` (row-major,
-// band rows x footprint width).
+// band rows x footprint width). `within(line, k0, k1, add)` calls add(lo, hi)
+// for the parts [lo, hi] of each span to sample: the whole span for a plain
+// render, the refined pixels' samples for the edge refinement.
+template <typename Within>
 void accumulateTriangle(const TriangleSetup& t, const Band& band, const Footprint& f,
-                        double* sum) {
+                        double* sum, Within within) {
   const double sigma = t.sigma;
   const size_t width = static_cast<size_t>(f.width());
   raster::forEachSpan(t, band.row_begin, band.row_end, [&](int line, int k0, int k1) {
     if (t.by_rows) {
       const double across = t.gy * ((line + 0.5) - t.y[0]);
       double* row = sum + static_cast<size_t>(line - band.row_begin) * width;
-      for (int k = k0; k <= k1; ++k)
-        row[k - f.col_begin] += sigma / t.magnification(t.gx * ((k + 0.5) - t.x[0]), across);
+      within(line, k0, k1, [&](int lo, int hi) {
+        for (int k = lo; k <= hi; ++k)
+          row[k - f.col_begin] += sigma / t.magnification(t.gx * ((k + 0.5) - t.x[0]), across);
+      });
     } else {
       const double across = t.gx * ((line + 0.5) - t.x[0]);
       double* column = sum + (line - f.col_begin);
-      for (int k = k0; k <= k1; ++k)
-        column[static_cast<size_t>(k - band.row_begin) * width] +=
-            sigma / t.magnification(across, t.gy * ((k + 0.5) - t.y[0]));
+      within(line, k0, k1, [&](int lo, int hi) {
+        for (int k = lo; k <= hi; ++k)
+          column[static_cast<size_t>(k - band.row_begin) * width] +=
+              sigma / t.magnification(across, t.gy * ((k + 0.5) - t.y[0]));
+      });
     }
   });
 }
@@ -56,7 +63,8 @@ void bandSums(const SceneSetup& scene, const WorldMesh& mesh, const Band& band, 
                               f.col_begin, f.width(), sum.data(), csg_scratch);
     return;
   }
-  for (uint32_t i : f.bins[b]) accumulateTriangle(scene.triangles[i], band, f, sum.data());
+  const auto whole = [](int, int k0, int k1, auto&& add) { add(k0, k1); };
+  for (uint32_t i : f.bins[b]) accumulateTriangle(scene.triangles[i], band, f, sum.data(), whole);
 }
 
 
@@ -115,8 +123,9 @@ PixelRect grown(const PixelRect& r, int by) {
 // column, and their four neighbours. The path is piecewise linear across the
 // detector except at the projections of edges and silhouettes, so its bends
 // are where point samples step; the intensity, a curved function of the
-// path, also bends inside every steep ramp, where 2 x 2 samples are close. Outside the part's footprint (and 1 pixel around it) the image
-// is the constant background: nothing bends there.
+// path, also bends inside every steep ramp, where 2 x 2 samples are close.
+// Outside the part's footprint (and 1 pixel around it) the path is 0:
+// nothing bends there.
 template <typename T>
 RefinedRuns bentPixels(const ImageT<T>& image, const PixelRect& wide, const PixelRect& region,
                        const PixelRect& footprint, double threshold) {
@@ -209,25 +218,12 @@ void refinePixels(const Machine& machine, const WorldMesh& mesh, int m, const Re
                     0.0);
     for (uint32_t i : f.bins[b]) {
       const TriangleSetup& t = scene.triangles[i];
-      const double sigma = t.sigma;
-      raster::forEachSpan(t, band.row_begin, band.row_end, [&](int line, int k0, int k1) {
-        if (t.by_rows) {
-          const double across = t.gy * ((line + 0.5) - t.y[0]);
-          double* row = sum.data() + static_cast<size_t>(line - band.row_begin) * width;
-          for (const auto& run : runs.row(line / m))
-            if (clip(run, k0, k1, lo, hi))
-              for (int k = lo; k <= hi; ++k)
-                row[k - f.col_begin] += sigma / t.magnification(t.gx * ((k + 0.5) - t.x[0]), across);
-        } else {
-          const double across = t.gx * ((line + 0.5) - t.x[0]);
-          double* column = sum.data() + (line - f.col_begin);
-          for (const auto& run : runs.column(line / m))
-            if (clip(run, k0, k1, lo, hi))
-              for (int k = lo; k <= hi; ++k)
-                column[static_cast<size_t>(k - band.row_begin) * width] +=
-                    sigma / t.magnification(across, t.gy * ((k + 0.5) - t.y[0]));
-        }
-      });
+      // A row scan's line is a sample row, a column scan's a sample column.
+      const auto refined = [&](int line, int k0, int k1, auto&& add) {
+        for (const auto& run : t.by_rows ? runs.row(line / m) : runs.column(line / m))
+          if (clip(run, k0, k1, lo, hi)) add(lo, hi);
+      };
+      accumulateTriangle(t, band, f, sum.data(), refined);
     }
     for (int v = band.row_begin / m; v < band.row_end / m; ++v)
       for (const auto& run : runs.row(v))
@@ -263,18 +259,19 @@ void renderPixels(const Machine& machine, const WorldMesh& mesh, const RenderOpt
           machine.detectorRect());
   RenderOptions plain = options;
   plain.region = wide;
-  thread_local ImageT<T> image;  // every pixel is written again, render after render
+  // Kept from render to render (an optimiser renders thousands of times):
+  // every pixel is written again.
+  thread_local ImageT<T> image;
+  thread_local ImageT<double> path;
   tbb::this_task_arena::isolate([&] {
     PixelRect footprint;
-    // Kept from render to render (an optimiser renders thousands of times):
-    // every pixel is written again.
-    thread_local ImageT<double> path;
     renderPixelsIsolated(machine, mesh, plain, background, shade, image, &footprint, &path);
     if (footprint.empty()) return;
     const RefinedRuns runs = bentPixels(path, wide, region, footprint, options.edge_threshold);
     refinePixels(machine, mesh, m, runs, wide, shade, image);
   });
-  out.resize(region.width, region.height);
+  if (out.width() != region.width || out.height() != region.height)
+    out.resize(region.width, region.height);
   for (int y = 0; y < region.height; ++y)
     std::copy_n(image.row(y + region.y - wide.y) + (region.x - wide.x), region.width, out.row(y));
 }

@@ -229,6 +229,9 @@ Image renderWedgeBlock(const Machine& machine, const Pose& pose, int samples,
   poseVertices(pose, mesh.vertices, world);
   RenderOptions options;
   options.samples_per_axis = samples;
+  // Edges and silhouettes 8 x 8, as a measurement's final stage renders
+  // (measure/schedule.h).
+  options.edge_samples_per_axis = samples < 8 ? 8 : 0;
   Image image;
   renderIntensity(machine, {world, mesh.triangles},
                   TransmissionTable::forMaterial(kWedgeCurve, 200.0), options, image);
@@ -477,6 +480,7 @@ TEST_F(Calibrate, KnownCuboidGivesBackTheMaterialItWasRenderedWith) {
   const TriangleMesh mesh = part.mesh(part.values(dims));
   RenderOptions options;
   options.samples_per_axis = 2;
+  options.edge_samples_per_axis = 8;  // as the fit's final stage (measure/schedule.h)
   std::vector<Vec3> world;
   const auto table = TransmissionTable::forMaterial(truth, 200.0);
   const std::pair<const char*, Pose> shots[] = {

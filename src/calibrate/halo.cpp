@@ -390,6 +390,8 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   // Never more certain than the defaults of a typed-in scatter: the residual
   // also holds the panel's fixed pattern and the ghost of the previous shot,
   // which are correlated over many pixels.
+  out.weight_uncertainty_fit = u_weight;
+  out.sigma_uncertainty_fit_mm = sigma_mm * u_log_sigma;
   out.scatter.weight_uncertainty = std::max(u_weight, 0.05 * weight);
   out.scatter.sigma_uncertainty_mm = std::max(sigma_mm * u_log_sigma, 0.1 * sigma_mm);
   out.column_darkening = -best.k.c / (best.k.a + best.k.b);

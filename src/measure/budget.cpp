@@ -256,6 +256,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     const double scale = material.rateScaleFor(u, model.partSizeMm());
     if (scale > 0.0) {
       ForwardModel moved(inputs, material.withScaledRates(scale));
+      moved.setEdgeSamples(model.edgeSamples());
       resolve(
           moved,
           {"material", fmt::format("transmission curve, u = {:.2g}", u), "transmission", u, {}});
@@ -270,6 +271,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     MeasurementInputs moved = inputs;  // the model below keeps a reference to it
     change(moved, 1.0);
     ForwardModel moved_model(moved, curve ? *curve : model.material());
+    moved_model.setEdgeSamples(model.edgeSamples());
     resolve(moved_model, {name, quantity, unit, u, {}});
   };
   const ScatterModel& scatter = inputs.job.scatter;

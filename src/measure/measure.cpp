@@ -225,12 +225,16 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
   const int ls_level = model.levelForWidth(ls.min_width_px);
   const bool line =
       model.radiograph(0).levels[static_cast<size_t>(ls_level)].height() < kLineDetectorRows;
-  if (ls.enabled)
+  if (ls.enabled) {
+    // From here on (this stage, the budget and the self-checks) the pixels
+    // on edges are sampled finer (schedule.h, LeastSquaresStage::edge_samples).
+    model.setEdgeSamples(ls.edge_samples);
     runner.report(solveLeastSquares(model, theta, all, every_radiograph, ls_level, ls.samples,
                                     ls.max_iterations * (line ? kLineIterationFactor : 1),
                                     model.job().loss == LossKind::kMeanAbsolute,
                                     ls.render_derivatives ? JacobianKind::kRenderDerivatives
                                                           : JacobianKind::kForwardDifferences));
+  }
 }
 
 // The uncertainty budget and the self-checks, from the residuals and their
@@ -292,6 +296,7 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
   const MeasurementJob& job = model.job();
   const Schedule& schedule = options.schedule ? *options.schedule : scheduleFor(job.schedule);
   XG_CHECK(theta.size() == static_cast<size_t>(model.size()), "theta has the wrong size");
+  model.setEdgeSamples(0);  // until the least-squares stage
   if (const auto why = model.infeasibility(theta))
     spdlog::warn(
         "the starting parameters cannot be simulated ({}); the searches start from "

@@ -97,10 +97,12 @@ MeasurementResult measureSelfRender(const fs::path& dir, const Machine& machine,
   Pose b = a;
   b.translation_mm += 30.0 * axis;
 
-  // Noise-free radiographs with 2 x 2 samples, as the fit's stages.
+  // Noise-free radiographs with 2 x 2 samples and the edges 8 x 8, as the
+  // fit's final stage renders (schedule.h).
   const auto table = TransmissionTable::forMaterial(material, 200.0);
   RenderOptions options;
   options.samples_per_axis = 2;
+  options.edge_samples_per_axis = 8;
   std::vector<Vec3> world;
   for (const auto& [name, pose] : {std::pair{"a", a}, std::pair{"b", b}}) {
     poseVertices(pose, mesh.vertices, world);

@@ -500,6 +500,7 @@ Image ForwardModel::simulatePosed(const WorldMesh& mesh, int radiograph, int lev
                                   const PixelRect& region) {
   RenderOptions options;
   options.samples_per_axis = samples;
+  options.edge_samples_per_axis = edge_samples_ > samples ? std::min(edge_samples_, 32) : 0;
   options.region = region;
   Image out;
   renderIntensity(machineAt(level), mesh, transmission_, options, out);

@@ -29,6 +29,7 @@ Schedule makeDefault() {
              {Method::kBobyqa, 1024, 2, 700, 0.3, 10.0},
              {Method::kBobyqa, 2048, 2, 300, 0.1, 10.0}};
   s.least_squares = {true, 2048, 2, 30};
+  s.least_squares.edge_samples = 8;
   return s;
 }
 
@@ -47,6 +48,7 @@ Schedule makeGaussNewton() {
   finer.evaluations = 10;
   s.joint = {coarse, finer};
   s.least_squares.render_derivatives = true;
+  s.least_squares.edge_samples = 0;  // the render's derivatives are those of its point samples
   return s;
 }
 

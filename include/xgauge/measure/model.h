@@ -116,6 +116,13 @@ class ForwardModel {
   // Diagonal of the part's nominal bounding box (mm).
   double partSizeMm() const { return part_size_mm_; }
 
+  // From now on every render also samples the pixels on the projection of
+  // an edge or a silhouette with m x m points (RenderOptions::
+  // edge_samples_per_axis; where m is not above a render's own samples, that
+  // render does not refine); 0: never (the default).
+  void setEdgeSamples(int m) { edge_samples_ = m; }
+  int edgeSamples() const { return edge_samples_; }
+
   // Why theta cannot be simulated, or nullopt when it can.
   std::optional<std::string> infeasibility(std::span<const double> theta);
   // Sum over `radiographs` of the loss at pyramid `level` with n x n
@@ -187,6 +194,7 @@ class ForwardModel {
   std::vector<int> pose_first_;  // first pose parameter of each radiograph
   Vec3 centre_part_;
   double part_size_mm_ = 0.0;
+  int edge_samples_ = 0;
   // Scratch reused between evaluations.
   std::vector<Vec3> part_vertices_, world_vertices_;
   Image rendered_, coarse_;

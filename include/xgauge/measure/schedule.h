@@ -22,7 +22,9 @@
 //            BOBYQA on levels about 512, 1024 and 2048 px wide with 2 x 2
 //            area samples, each in a window of ten first steps around the
 //            estimate so far; then least squares on the residuals (reweighted
-//            for the L1 loss) on the finest of those levels.
+//            for the L1 loss) on the finest of those levels, with the pixels
+//            on edges and silhouettes sampled 8 x 8 (there and in the
+//            uncertainty budget).
 //   gauss-newton  the default's pose steps; then the joint fit by
 //            Gauss-Newton / Levenberg-Marquardt (Ceres) with the Jacobian of
 //            the render with derivatives (xray/derivatives.h) on levels about
@@ -111,6 +113,14 @@ struct LeastSquaresStage {
   int max_iterations = 30;
   // The Jacobian from the render with derivatives (else forward differences).
   bool render_derivatives = false;
+  // Pixels on the projection of an edge or a silhouette sampled again with
+  // edge_samples x edge_samples points (xray/renderer.h) in this stage and
+  // in the uncertainty budget and self-checks after it; 0: never. With
+  // `samples` x `samples` points alone, a wall seen along the beam moves the
+  // image only when it passes a point, so the fit lands anywhere within
+  // 1/samples of a pixel and the budget's re-solves stick (docs/method.md,
+  // "The pixel's integral").
+  int edge_samples = 0;
 };
 
 enum class ScheduleKind { kDefault, kGaussNewton, kThesis };

@@ -64,33 +64,6 @@ std::vector<double> linearSteps(const ForwardModel& model, std::span<const doubl
   }
   return steps;
 }
-// A least-squares stage stops once an accepted step moves no parameter by
-// more than this fraction of its linearisation step (about 0.0002 pixels of
-// the level at the part): Ceres' own tolerances on the relative cost and
-// on the step relative to |x| (a depth of 700 mm) let a re-solve of the
-// budget run all its iterations to move by a millionth of a pixel.
-constexpr double kConvergedSteps = 1e-4;
-
-// Ceres' callback for that criterion; `x` is the state Ceres updates.
-class SmallSteps final : public ceres::IterationCallback {
- public:
-  SmallSteps(const std::vector<double>& x, std::vector<double> steps)
-      : x_(x), last_(x), steps_(std::move(steps)) {}
-  ceres::CallbackReturnType operator()(const ceres::IterationSummary& summary) override {
-    if (summary.iteration == 0 || !summary.step_is_successful) return ceres::SOLVER_CONTINUE;
-    double largest = 0.0;
-    for (size_t k = 0; k < x_.size(); ++k)
-      largest = std::max(largest, std::abs(x_[k] - last_[k]) / steps_[k]);
-    last_ = x_;
-    return largest < kConvergedSteps ? ceres::SOLVER_TERMINATE_SUCCESSFULLY
-                                     : ceres::SOLVER_CONTINUE;
-  }
-
- private:
-  const std::vector<double>& x_;
-  std::vector<double> last_, steps_;
-};
-
 // The smallest noise sigma (normalized intensity) the robust loss assumes: a
 // tenth of what the quietest flat panels show per pixel.
 constexpr double kNoiseFloor = 1e-4;
@@ -348,9 +321,6 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
   options.num_threads = 1;  // one residual block; the renderer is parallel itself
   options.logging_type = ceres::SILENT;
   options.minimizer_progress_to_stdout = false;
-  SmallSteps small_steps(x, linearSteps(model, theta, indices, level));
-  options.update_state_every_iteration = true;
-  options.callbacks.push_back(&small_steps);
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
   if (progress) progress->finish();

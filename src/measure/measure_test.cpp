@@ -97,12 +97,19 @@ MeasurementResult measureSelfRender(const fs::path& dir, const Machine& machine,
   Pose b = a;
   b.translation_mm += 30.0 * axis;
 
-  // Noise-free radiographs with 2 x 2 samples and the edges 8 x 8, as the
-  // fit's final stage renders (schedule.h).
+  // Noise-free radiographs as the fit's final stage renders them: 2 x 2
+  // samples, the edges 8 x 8 where its schedule refines them (schedule.h).
   const auto table = TransmissionTable::forMaterial(material, 200.0);
   RenderOptions options;
   options.samples_per_axis = 2;
-  options.edge_samples_per_axis = 8;
+  std::string schedule = "default";
+  if (const size_t at = extra.find(R"("schedule": ")"); at != std::string::npos) {
+    const size_t from = at + std::string_view(R"("schedule": ")").size();
+    schedule = extra.substr(from, extra.find('"', from) - from);
+  }
+  const auto kind = scheduleKindFromName(schedule);
+  options.edge_samples_per_axis =
+      scheduleFor(kind.value_or(ScheduleKind::kDefault)).least_squares.edge_samples;
   std::vector<Vec3> world;
   for (const auto& [name, pose] : {std::pair{"a", a}, std::pair{"b", b}}) {
     poseVertices(pose, mesh.vertices, world);

@@ -186,20 +186,29 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       static_cast<double>(m) / static_cast<double>(std::max<Eigen::Index>(1, m - n));
   const Eigen::MatrixXd statistical = small_sample * a_inverse * b * a_inverse;
 
-  // The influences. Each is a model moved by its u; the fit is solved again
-  // with it (Ceres, as the final stage, from theta) and the shift of every
-  // parameter, including what the poses absorb, is the influence's effect.
-  // A linearised re-solve, -A^-1 J^T W dr, was tried first: on a cuboid seen
-  // as a translated pair it moved the sides by 13 um per 0.5 mm of
-  // source-detector distance, where a re-solve (and a measurement of
-  // radiographs taken with the distance changed) moves them by none; the
-  // pose absorbs the change along a weakly determined direction that the
-  // linearisation does not follow. The re-solves run on the level about
-  // 1024 pixels wide (a quarter of the final stage's pixels at 4096^2),
-  // each against the unmoved model solved there from the same start, so that
-  // only the influence's shift remains. At 512 pixels the 1024^2 demo's
-  // slot_width (a 4 mm slot, 19 pixels there) got a U of 0.021 mm where 50
-  // Monte Carlo repetitions spread by 0.008 (2 s); at 1024 its U is 0.002.
+  // The influences. Each is a model moved by its u, and its effect the
+  // shift of every parameter (including what the poses absorb) that the
+  // fit makes with it. Two ways, by what the influence does to the image:
+  //
+  // - Intensity (material, scatter, lag): one render of the moved model at
+  //   theta on the final stage's level gives the change of the residuals
+  //   dr, and the shift is the linearised re-solve -A^-1 J^T W dr with the
+  //   fit's own Jacobian. On a 1024^2 prism B pair and a wedge pair it
+  //   agreed with ten-iteration Ceres re-solves to 2-5 % on every component
+  //   above 0.002 mm (the re-solves, not converged after ten iterations,
+  //   are the less exact of the two), for one render instead of about 500.
+  // - Geometry (source-detector distance, pixel pitch, translation): the
+  //   pose absorbs most of such a change along a weakly determined direction
+  //   that the linearisation does not follow (on that prism B pair it moved
+  //   slot_depth by 0.0045 mm per 0.5 mm of source-detector distance, where
+  //   a re-solve, and uncertainty_test's measurement of radiographs taken
+  //   with the distance changed, move it by 0.0001). These are solved again
+  //   (Ceres, as the final stage) on the level about 1024 pixels wide (a
+  //   quarter of the final stage's pixels at 4096^2), each against the
+  //   unmoved model solved there from the same start, so that only the
+  //   influence's shift remains. At 512 pixels with 2 x 2 point samples the
+  //   1024^2 demo's slot_width (a 4 mm slot, 19 pixels there) got a U of
+  //   0.021 mm where 50 Monte Carlo repetitions spread by 0.008 (2 s).
   const bool robust = model.job().loss == LossKind::kMeanAbsolute;
   const int level = std::max(fit.level, model.levelForWidth(kResolveWidthPx));
   const int samples = fit.samples;
@@ -211,27 +220,57 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
         solveLeastSquares(with, solved, fit.indices, radiographs, level, samples,
                           kResolveIterations, robust, JacobianKind::kForwardDifferences,
                           /*quiet=*/true);
+    spdlog::debug("uncertainty: re-solve in {} evaluations, {:.2f} s ({})", report.evaluations,
+                  report.seconds, report.termination);
     return report.termination != "start point invalid";
   };
-  std::vector<double> reference;
   // A model with the material free (a calibration) has parameters a moved
   // model would not: its influences are not propagated.
-  const bool propagate = !material_free && solveFrom(model, reference);
-  auto resolve = [&](ForwardModel& moved, Influence influence) {
-    std::vector<double> solved;
-    if (!solveFrom(moved, solved)) {
-      budget.notes.push_back(
-          fmt::format("{}: the fit with it moved by u could not be solved; "
-                      "left out",
-                      influence.name));
-      return;
+  const bool propagate = !material_free;
+  std::optional<std::vector<double>> reference;  // solved on the first re-solve
+  enum class Propagation { kLinearised, kReSolved };
+  auto propagateInfluence = [&](ForwardModel& moved, Influence influence, Propagation how) {
+    Eigen::VectorXd shift(n);
+    if (how == Propagation::kLinearised) {
+      std::vector<double> moved_r;
+      if (!moved.residuals(theta, fit.level, samples, radiographs, moved_r) ||
+          moved_r.size() != static_cast<size_t>(m)) {
+        budget.notes.push_back(fmt::format(
+            "{}: the radiographs with it moved by u could not be simulated; left out",
+            influence.name));
+        return;
+      }
+      const Eigen::VectorXd dr = Eigen::Map<const Eigen::VectorXd>(moved_r.data(), m) - r;
+      Eigen::VectorXd g = Eigen::VectorXd::Zero(n);
+      for (Eigen::Index i = 0; i < m; i += kChunk) {
+        const Eigen::Index rows = std::min(kChunk, m - i);
+        g.noalias() += jacobian.middleRows(i, rows).transpose() *
+                       (w.segment(i, rows).cwiseProduct(dr.segment(i, rows)));
+      }
+      shift = -(a_inverse * (project * g));
+    } else {
+      if (!reference) {
+        reference.emplace();
+        if (!solveFrom(model, *reference)) {
+          budget.notes.push_back(fmt::format(
+              "{}: the fit could not be solved again on the coarser level; left out",
+              influence.name));
+          reference->clear();
+          return;
+        }
+      }
+      std::vector<double> solved;
+      if (reference->empty() || !solveFrom(moved, solved)) {
+        budget.notes.push_back(fmt::format(
+            "{}: the fit with it moved by u could not be solved; left out", influence.name));
+        return;
+      }
+      for (Eigen::Index k = 0; k < n; ++k) {
+        const auto i = static_cast<size_t>(fit.indices[static_cast<size_t>(k)]);
+        shift(k) = solved[i] - (*reference)[i];
+      }
     }
-    influence.delta_theta.resize(n);
-    for (Eigen::Index k = 0; k < n; ++k) {
-      const auto i = static_cast<size_t>(fit.indices[static_cast<size_t>(k)]);
-      influence.delta_theta(k) = solved[i] - reference[i];
-    }
-    influence.delta_theta = project * influence.delta_theta;
+    influence.delta_theta = project * shift;
     influences.push_back(std::move(influence));
   };
   const MeasurementInputs& inputs = model.inputs();
@@ -239,10 +278,6 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     budget.notes.push_back(
         "the material is fitted with the dimensions (a calibration): only the statistical part "
         "is given");
-  } else if (!propagate) {
-    budget.notes.push_back(
-        "the fit could not be solved again on the coarser level: only the "
-        "statistical part is given");
   } else {
     // The scale of the rates that moves the curve by u at the worst path:
     // dI/d(scale) = -x sum a_k mu_k exp(-mu_k x).
@@ -257,14 +292,15 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     if (scale > 0.0) {
       ForwardModel moved(inputs, material.withScaledRates(scale));
       moved.setEdgeSamples(model.edgeSamples());
-      resolve(
+      propagateInfluence(
           moved,
-          {"material", fmt::format("transmission curve, u = {:.2g}", u), "transmission", u, {}});
+          {"material", fmt::format("transmission curve, u = {:.2g}", u), "transmission", u, {}},
+          Propagation::kLinearised);
     }
   }
   // change(inputs, amount) moves the influence by amount * u; `curve`, when
   // given, is the material curve that goes with it.
-  auto withInputs = [&](const std::string& name, const std::string& quantity,
+  auto withInputs = [&](Propagation how, const std::string& name, const std::string& quantity,
                         const std::string& unit, double u, auto change,
                         const std::optional<ExponentialSum>& curve = std::nullopt) {
     if (!(u > 0.0) || !propagate) return;
@@ -272,7 +308,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     change(moved, 1.0);
     ForwardModel moved_model(moved, curve ? *curve : model.material());
     moved_model.setEdgeSamples(model.edgeSamples());
-    resolve(moved_model, {name, quantity, unit, u, {}});
+    propagateInfluence(moved_model, {name, quantity, unit, u, {}}, how);
   };
   const ScatterModel& scatter = inputs.job.scatter;
   if (scatter.enabled()) {
@@ -282,14 +318,14 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     const std::optional<ScatterCurves>& curves = inputs.scatter_curves;
     const char* with_curve = curves ? ", with the curve it calibrated" : "";
     withInputs(
-        "scatter weight",
+        Propagation::kLinearised, "scatter weight",
         fmt::format("w = {:.4g} +- {:.2g}{}", scatter.weight, scatter.weight_uncertainty, with_curve),
         "1", scatter.weight_uncertainty,
         [&](MeasurementInputs& in, double amount) {
           in.job.scatter.weight += amount * scatter.weight_uncertainty;
         },
         curves ? curves->weight_plus_u : std::nullopt);
-    withInputs("scatter width",
+    withInputs(Propagation::kLinearised, "scatter width",
                fmt::format("sigma = {:.4g} +- {:.2g} mm{}", scatter.sigma_mm,
                            scatter.sigma_uncertainty_mm, with_curve),
                "mm", scatter.sigma_uncertainty_mm,
@@ -299,7 +335,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
                curves ? curves->sigma_plus_u : std::nullopt);
   }
   const Machine& machine = inputs.machine;
-  withInputs("source-detector distance",
+  withInputs(Propagation::kReSolved, "source-detector distance",
              fmt::format("D = {:.2f} +- {:.2g} mm", machine.source_detector_distance_mm,
                          machine.source_detector_distance_uncertainty_mm),
              "mm", machine.source_detector_distance_uncertainty_mm,
@@ -307,7 +343,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
                in.machine.source_detector_distance_mm +=
                    amount * machine.source_detector_distance_uncertainty_mm;
              });
-  withInputs("pixel pitch",
+  withInputs(Propagation::kReSolved, "pixel pitch",
              fmt::format("pitch {:.4g} mm, relative u = {:.2g}", machine.pitch_u_mm,
                          machine.pixel_pitch_uncertainty_relative),
              "relative", machine.pixel_pitch_uncertainty_relative,
@@ -319,7 +355,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     const RadiographSpec& spec = inputs.job.radiographs[k];
     if (spec.pattern != Acquisition::kTranslated) continue;
     const double u = spec.distance_uncertainty_mm;
-    withInputs("translation " + spec.name,
+    withInputs(Propagation::kReSolved, "translation " + spec.name,
                fmt::format("distance {:.4f} +- {:.2g} mm", spec.distance_mm, u), "mm", u,
                [&](MeasurementInputs& in, double amount) {
                  in.job.radiographs[k].distance_mm += amount * u;
@@ -334,12 +370,21 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     if (!radiograph.lag || !(radiograph.lag->uncertainty > 0.0)) continue;
     const double u = radiograph.lag->uncertainty;
     const std::string name = "detector lag " + inputs.job.radiographs[k].name;
-    if (radiograph.lag_signal_levels.size() <= static_cast<size_t>(level) ||
-        radiograph.lag_signal_levels[static_cast<size_t>(level)].empty()) {
-      budget.notes.push_back(fmt::format("{}: its signal is not kept at level {}; left out", name, level));
+    // Linearised on the fit's level where the signal is kept there (it is
+    // not on levels kLagSignalWidthPx wide or more, to save memory), else
+    // solved again on the re-solves' level.
+    const auto kept = [&](int at) {
+      return radiograph.lag_signal_levels.size() > static_cast<size_t>(at) &&
+             !radiograph.lag_signal_levels[static_cast<size_t>(at)].empty();
+    };
+    const Propagation how = kept(fit.level) ? Propagation::kLinearised : Propagation::kReSolved;
+    if (how == Propagation::kReSolved && !kept(level)) {
+      budget.notes.push_back(
+          fmt::format("{}: its signal is not kept at level {}; left out", name, level));
       continue;
     }
-    withInputs(name, fmt::format("g = {:.5f} +- {:.2g} (estimated)", radiograph.lag->fraction, u),
+    withInputs(how, name,
+               fmt::format("g = {:.5f} +- {:.2g} (estimated)", radiograph.lag->fraction, u),
                "1", u, [&](MeasurementInputs& in, double amount) {
                  auto moved = std::make_shared<PreparedRadiograph>(radiograph);
                  const double step = amount * u;

@@ -32,7 +32,7 @@ struct PreparedRadiograph {
   std::optional<LagEstimate> lag;  // the previous frame's lag subtracted, if any
   // With an estimated lag: per level, the lag signal subtracted per unit
   // fraction (normalized like `levels`), kept only on levels narrower than
-  // kLagSignalWidthPx (the budget re-solves there); empty elsewhere.
+  // kLagSignalWidthPx (the budget propagates the lag there); empty elsewhere.
   std::vector<Image> lag_signal_levels;
   double lag_signal_white = 0.0;  // its mean over the white region (about 1)
   static constexpr int kLagSignalWidthPx = 2048;

@@ -196,7 +196,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   //   fit's own Jacobian. On a 1024^2 prism B pair and a wedge pair it
   //   agreed with ten-iteration Ceres re-solves to 2-5 % on every component
   //   above 0.002 mm (the re-solves, not converged after ten iterations,
-  //   are the less exact of the two), for one render instead of about 500.
+  //   are the less exact of the two), for one render instead of about 200.
   // - Geometry (source-detector distance, pixel pitch, translation): the
   //   pose absorbs most of such a change along a weakly determined direction
   //   that the linearisation does not follow (on that prism B pair it moved

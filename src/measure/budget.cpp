@@ -125,7 +125,7 @@ Eigen::MatrixXd geometricNullSpace(ForwardModel& model, std::span<const double> 
 struct Influence {
   std::string name, quantity, unit;
   double u = 0.0;               // standard uncertainty, in unit
-  Eigen::VectorXd delta_theta;  // the linearised re-solve for q + u
+  Eigen::VectorXd delta_theta;  // the parameters' shift for q + u
 };
 
 }  // namespace
@@ -227,7 +227,9 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   // A model with the material free (a calibration) has parameters a moved
   // model would not: its influences are not propagated.
   const bool propagate = !material_free;
-  std::optional<std::vector<double>> reference;  // solved on the first re-solve
+  // The unmoved model solved on the re-solves' level, on the first re-solve.
+  std::vector<double> reference;
+  std::optional<bool> reference_solved;
   enum class Propagation { kLinearised, kReSolved };
   auto propagateInfluence = [&](ForwardModel& moved, Influence influence, Propagation how) {
     Eigen::VectorXd shift(n);
@@ -241,33 +243,19 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
         return;
       }
       const Eigen::VectorXd dr = Eigen::Map<const Eigen::VectorXd>(moved_r.data(), m) - r;
-      Eigen::VectorXd g = Eigen::VectorXd::Zero(n);
-      for (Eigen::Index i = 0; i < m; i += kChunk) {
-        const Eigen::Index rows = std::min(kChunk, m - i);
-        g.noalias() += jacobian.middleRows(i, rows).transpose() *
-                       (w.segment(i, rows).cwiseProduct(dr.segment(i, rows)));
-      }
-      shift = -(a_inverse * (project * g));
+      shift = -(a_inverse * (project * (jacobian.transpose() * w.cwiseProduct(dr))));
     } else {
-      if (!reference) {
-        reference.emplace();
-        if (!solveFrom(model, *reference)) {
-          budget.notes.push_back(fmt::format(
-              "{}: the fit could not be solved again on the coarser level; left out",
-              influence.name));
-          reference->clear();
-          return;
-        }
-      }
+      if (!reference_solved) reference_solved = solveFrom(model, reference);
       std::vector<double> solved;
-      if (reference->empty() || !solveFrom(moved, solved)) {
+      if (!*reference_solved || !solveFrom(moved, solved)) {
         budget.notes.push_back(fmt::format(
-            "{}: the fit with it moved by u could not be solved; left out", influence.name));
+            "{}: the fit could not be solved again with it moved by u; left out",
+            influence.name));
         return;
       }
       for (Eigen::Index k = 0; k < n; ++k) {
         const auto i = static_cast<size_t>(fit.indices[static_cast<size_t>(k)]);
-        shift(k) = solved[i] - (*reference)[i];
+        shift(k) = solved[i] - reference[i];
       }
     }
     influence.delta_theta = project * shift;

@@ -34,7 +34,7 @@ class Dataset : public ::testing::Test {
   void TearDown() override { fs::remove_all(dir_); }
 
   // A small recipe: the cuboid, 3 translations of 7.5 mm, 2 rotations.
-  std::string recipe(uint64_t seed, const std::string& extra = "") {
+  std::string recipe(uint64_t seed, const std::string& extra = "", const std::string& detector = "") {
     const std::string text = R"({
       "description": "test", "seed": )" + std::to_string(seed) + R"(,
       "machine": "machine.json",
@@ -44,7 +44,7 @@ class Dataset : public ::testing::Test {
       "material": {"compound": "Al", "density_g_cm3": 2.699},
       "detector": {"area_samples": 2, "focal_spot": {"fwhm_mm": 0.05, "samples": 3},
         "scatter": {"weight": 0.139, "sigma_px": 20}, "flat_frames": 4,
-        "noise": {"dead_pixel_fraction": 0.001}},
+        "noise": {"dead_pixel_fraction": 0.001})" + detector + R"(},
       "part": {"model": ")" + kRoot + R"(/parts/cuboid.json", "dimensions": {"size_x": 12.5}},
       "shots": {
         "base_pose": {"rotation_deg": [10, 20, 0], "translation_mm": [-15, 0, 500]},
@@ -150,6 +150,38 @@ TEST_F(Dataset, NormalizedOpenBeamSpreadsLikeTheThesis) {
   EXPECT_LT(high, 1.025);
 }
 
+TEST_F(Dataset, EdgePixelsAreSampledFinerAndOnlyThey) {
+  // The same seed with and without the edge refinement. The photon noise is
+  // drawn row by row from one stream per row, so a row's pixels stay
+  // identical up to the first pixel whose mean the refinement changed: that
+  // must be on the part's silhouette (or its edges inside), never in the open
+  // beam before it, and rows away from the shadow stay identical.
+  simulateDataset(Recipe::load(recipe(4)), dir_ / "refined");
+  simulateDataset(Recipe::load(recipe(4, "", R"(, "edge_samples": 0)")), dir_ / "plain");
+  const Image refined = readTiff(dir_ / "refined" / "t00.tif");
+  const Image plain = readTiff(dir_ / "plain" / "t00.tif");
+  const Image flat = readTiff(dir_ / "plain" / "flat.tif");
+  const int h = plain.height(), w = plain.width();
+  std::vector<int> first_shadow(h, w), first_differ(h, w);
+  for (int y = 0; y < h; ++y)
+    for (int x = w - 1; x >= 0; --x) {
+      if (plain(x, y) < 0.9f * flat(x, y)) first_shadow[y] = x;
+      if (refined(x, y) != plain(x, y)) first_differ[y] = x;
+    }
+  int rows_changed = 0;
+  for (int y = 0; y < h; ++y) {
+    int near_shadow = w;  // the first shadow pixel within 2 rows
+    for (int k = std::max(0, y - 2); k <= std::min(h - 1, y + 2); ++k)
+      near_shadow = std::min(near_shadow, first_shadow[k]);
+    if (first_differ[y] == w) continue;
+    ++rows_changed;
+    ASSERT_LT(near_shadow, w) << "row " << y << " changed away from the part's shadow";
+    EXPECT_GE(first_differ[y], near_shadow - 3) << "row " << y << " changed in the open beam";
+  }
+  EXPECT_GT(rows_changed, 20);
+  EXPECT_EQ(bytes(dir_ / "refined" / "flat.tif"), bytes(dir_ / "plain" / "flat.tif"));
+}
+
 TEST_F(Dataset, RotationsTurnAboutThePivot) {
   const std::string path = recipe(5);
   const Recipe r = Recipe::load(path);
@@ -176,6 +208,14 @@ TEST_F(Dataset, BadRecipesNameTheKey) {
   };
   expect(R"(, "white_region": [150, 0, 64, 64])", "outside the 160x120 detector");
   expect(R"(, "whit_region": [0, 0, 8, 8])", "unknown key 'whit_region'");
+  try {
+    simulateDataset(Recipe::load(recipe(9, "", R"(, "edge_samples": 2)")), dir_ / "bad");
+    FAIL() << "edge samples not above the area samples accepted";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("edge_samples"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("more than area_samples (2)"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "bad" / "truth.json"));
   try {
     Recipe::load(dir_ / "missing.json");
     FAIL();

@@ -597,9 +597,13 @@ TEST(ScatterHalo, WeightAndWidthComeBackOverARangeOfSetups) {
     EXPECT_NEAR(fit.scatter.weight, s.weight, 0.15 * s.weight);
     EXPECT_NEAR(fit.scatter.sigma_mm, s.sigma_px * s.pitch_mm, 0.25 * s.sigma_px * s.pitch_mm);
     EXPECT_NEAR(fit.column_darkening, s.darkening, 0.005);
-    // Each uncertainty states at least the defaults of a typed-in scatter.
-    EXPECT_GE(fit.scatter.weight_uncertainty, 0.05 * fit.scatter.weight);
-    EXPECT_GE(fit.scatter.sigma_uncertainty_mm, 0.1 * fit.scatter.sigma_mm);
+    // Each uncertainty covers the fit's error (k = 2, as a budget's U).
+    EXPECT_LE(std::abs(fit.scatter.weight - s.weight), 2.0 * fit.scatter.weight_uncertainty)
+        << "weight " << fit.scatter.weight << " +- " << fit.scatter.weight_uncertainty;
+    EXPECT_LE(std::abs(fit.scatter.sigma_mm - s.sigma_px * s.pitch_mm),
+              2.0 * fit.scatter.sigma_uncertainty_mm)
+        << "sigma " << fit.scatter.sigma_mm << " +- " << fit.scatter.sigma_uncertainty_mm;
+    EXPECT_GE(fit.correlation, 1.0);
     // Without the scatter and the darkening the open beam is flat at 1.
     EXPECT_NEAR(fit.primary(3, 3), 1.0, 0.02);
     EXPECT_NEAR(fit.primary(s.side - 4, s.side / 2), 1.0, 0.02);

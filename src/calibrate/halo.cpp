@@ -358,14 +358,19 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   checkPlausible(best, true);
 
   // Uncertainties: the width's from the curvature of the residual sum of
-  // squares S(ln sigma) (a change of S by 2 rms^2 is one standard deviation),
-  // the weight's from the least squares at that width combined with its
-  // change across the width's uncertainty.
+  // squares S(ln sigma) (a change of S by 2 c rms^2 is one standard
+  // deviation), the weight's from the least squares at that width combined
+  // with its change across the width's uncertainty. Both are widened by the
+  // residual's correlation c (fitAtWidth): what no halo explains (the
+  // panel's fixed pattern, the heel, the previous shot's ghost, a glare the
+  // Gaussian does not describe) is smooth over many pixels, and makes S and
+  // the least squares fluctuate c times more than white noise would.
+  const double correlation = best.correlation;
   const double t = std::log(best.sigma_px), h = 0.05;
   const WidthFit minus = at(t - h), plus = at(t + h);
   const double curvature = (sum(plus) - 2.0 * sum(best) + sum(minus)) / (h * h);
   const double u_log_sigma =
-      curvature > 0.0 ? std::sqrt(2.0 * best.rms * best.rms / curvature) : HUGE_VAL;
+      curvature > 0.0 ? std::sqrt(2.0 * correlation * best.rms * best.rms / curvature) : HUGE_VAL;
   const WidthFit wider = at(t + std::min(u_log_sigma, 0.5)),
                  narrower = at(t - std::min(u_log_sigma, 0.5));
   const double weight = weightOf(best.k);
@@ -375,7 +380,8 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   for (const AllowedWeights& allowed : allowedWeights(best))
     lowest = std::min(lowest, allowed.low), highest = std::max(highest, allowed.high);
   const double u_weight = std::max(
-      std::hypot(weightUncertainty(best), 0.5 * std::abs(weightOf(wider.k) - weightOf(narrower.k))),
+      std::hypot(weightUncertainty(best) * std::sqrt(correlation),
+                 0.5 * std::abs(weightOf(wider.k) - weightOf(narrower.k))),
       (highest - lowest) / (2.0 * kProfileSigmas));
   const double sigma_mm = best.sigma_px * binned_pitch;
   if (!(u_log_sigma < 0.5) || !(u_weight < 0.5 * weight) || !(weight < 0.9))
@@ -387,13 +393,9 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
 
   out.scatter.weight = weight;
   out.scatter.sigma_mm = sigma_mm;
-  // Never more certain than the defaults of a typed-in scatter: the residual
-  // also holds the panel's fixed pattern and the ghost of the previous shot,
-  // which are correlated over many pixels.
-  out.weight_uncertainty_fit = u_weight;
-  out.sigma_uncertainty_fit_mm = sigma_mm * u_log_sigma;
-  out.scatter.weight_uncertainty = std::max(u_weight, 0.05 * weight);
-  out.scatter.sigma_uncertainty_mm = std::max(sigma_mm * u_log_sigma, 0.1 * sigma_mm);
+  out.scatter.weight_uncertainty = u_weight;
+  out.scatter.sigma_uncertainty_mm = sigma_mm * u_log_sigma;
+  out.correlation = correlation;
   out.column_darkening = -best.k.c / (best.k.a + best.k.b);
   out.open_level = 1.0 / (best.k.a + best.k.b);
   out.rms = best.rms;

@@ -303,10 +303,10 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
     if (found && !job.model) {
       HaloFit& halo = *found;
       spdlog::info(
-          "{}: scatter from the halo around the wedge: weight {:.4f} +- {:.4f}, sigma {:.1f} +- "
-          "{:.1f} mm; column darkening {:.4f} per unit attenuation",
+          "{}: scatter from the halo around the wedge: weight {:.4f} +- {:.2g}, sigma {:.1f} +- "
+          "{:.2g} mm; residual correlation {:.1f}; column darkening {:.4f} per unit attenuation",
           name, halo.scatter.weight, halo.scatter.weight_uncertainty, halo.scatter.sigma_mm,
-          halo.scatter.sigma_uncertainty_mm, halo.column_darkening);
+          halo.scatter.sigma_uncertainty_mm, halo.correlation, halo.column_darkening);
       image = std::move(halo.primary);
       halo.primary = Image();
       out.scatter = halo.scatter;

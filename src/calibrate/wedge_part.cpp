@@ -133,10 +133,10 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
       try {
         halo = fitScatterWithPaths(normalized, path, machine.pitch_u_mm, name, options);
         spdlog::info(
-            "{}: scatter around the posed wedge: weight {:.4f} +- {:.4f}, sigma {:.1f} +- {:.1f} "
-            "mm; column darkening {:.4f} per unit attenuation{}",
+            "{}: scatter around the posed wedge: weight {:.4f} +- {:.2g}, sigma {:.1f} +- {:.2g} "
+            "mm; residual correlation {:.1f}; column darkening {:.4f} per unit attenuation{}",
             name, halo->scatter.weight, halo->scatter.weight_uncertainty, halo->scatter.sigma_mm,
-            halo->scatter.sigma_uncertainty_mm, halo->column_darkening,
+            halo->scatter.sigma_uncertainty_mm, halo->correlation, halo->column_darkening,
             box_halo ? fmt::format(" (around the box of its edges: weight {:.4f}, sigma {:.1f} mm)",
                                    box_halo->scatter.weight, box_halo->scatter.sigma_mm)
                      : std::string());

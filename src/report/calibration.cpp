@@ -118,8 +118,7 @@ nlohmann::json wedgeScatterJson(const WedgeCalibrationJob& job, const WedgeCalib
     const PixelRect& box = halo->shadow;
     out["column_darkening"] = halo->column_darkening;
     out["open_beam_residual_rms"] = halo->rms;
-    out["weight_uncertainty_fit"] = halo->weight_uncertainty_fit;
-    out["sigma_uncertainty_fit_mm"] = halo->sigma_uncertainty_fit_mm;
+    out["residual_correlation"] = halo->correlation;
     out["open_pixels"] = halo->open_pixels;
     out["binning"] = halo->binning;
     out["shadow_box"] = {box.x, box.y, box.width, box.height};

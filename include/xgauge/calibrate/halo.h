@@ -53,9 +53,10 @@ struct HaloFit {
   int binning = 1;                // full-size pixels per binned pixel along each side
   int open_pixels = 0;            // binned open-beam pixels the fit used
   double rms = 0.0;               // residual of the open beam at the optimum
-  // The weight's and the width's standard uncertainties from the open
-  // beam's fit alone, before scatter.* takes the floors (halo.cpp).
-  double weight_uncertainty_fit = 0.0, sigma_uncertainty_fit_mm = 0.0;
+  // The residual's correlation at the optimum (1 for white noise, up to the
+  // 256 pixels of a block for a residual smooth over it), by whose square
+  // root the uncertainties of scatter.* are widened (halo.cpp).
+  double correlation = 1.0;
   // The search: sigma_mm and the open beam's residual rms at each.
   std::vector<double> sigma_mm, residual_rms;
   double open_level = 1.0;  // 1 / (a + b): the open beam's level in `normalized`

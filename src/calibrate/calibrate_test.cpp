@@ -296,6 +296,19 @@ TEST_F(Calibrate, WedgeGivesBackTheMaterialItWasRenderedWith) {
   EXPECT_EQ(reread.transmission(7.0), result.material.transmission(7.0));
   EXPECT_EQ(reread.transmissionUncertainty(), result.material.transmissionUncertainty());
   EXPECT_EQ(reread.calibratedRange(), result.material.calibratedRange());
+  // The thickness's and the ramp length's curves are listed for the budget
+  // (the scatter's go with the scatter); the rest of u is the table's and
+  // the scatter's.
+  ASSERT_EQ(reread.curveMoves().size(), 2u);
+  double listed = 0.0;
+  for (const CurveMove& move : reread.curveMoves()) {
+    EXPECT_TRUE(move.name == "wedge max_thickness_mm" || move.name == "wedge ramp_length_mm")
+        << move.name;
+    EXPECT_GT(move.curve_change, 0.0);
+    listed += move.curve_change * move.curve_change;
+  }
+  EXPECT_NEAR(reread.curveMovesBesides() * reread.curveMovesBesides() + listed,
+              std::pow(reread.transmissionUncertainty(), 2), 1e-12);
 
   // An open-beam radiograph: a clear error and no material file.
   writeTiff(dir_ / "wedge.tif", Image(512, 512, 1.0f), TiffFormat::kFloat32);
@@ -400,6 +413,14 @@ TEST_F(Calibrate, AWedgeFittedAsAKnownPartGivesBackItsMaterial) {
     // caliper value (and the scatter's weight and width when there is one).
     EXPECT_EQ(result.influences.size(), dims.size() + (c.weight > 0.0 ? 2u : 0u));
     EXPECT_GE(2.0 * result.material.transmissionUncertainty(), worst);
+    // Each caliper value's curve is listed for the budget, with its change.
+    ASSERT_EQ(result.material.curveMoves().size(), dims.size());
+    for (const CurveMove& move : result.material.curveMoves()) {
+      EXPECT_TRUE(move.name.starts_with("wedge ")) << move.name;
+      EXPECT_EQ(move.standard_uncertainty, loaded.caliper_uncertainty_mm);
+      EXPECT_NEAR(largestDifference(result.material, move.curve, result.x_max_mm),
+                  move.curve_change, 1e-12 + 1e-6 * move.curve_change);
+    }
     // Its outputs: material.json as the curve, and the pose fit's result.
     const fs::path out = dir_ / ("out" + std::to_string(index++));
     writeWedgeCalibration(loaded, result, {}, out, false);

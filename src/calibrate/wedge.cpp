@@ -221,6 +221,20 @@ void combineCurveUncertainty(const std::string& name, WedgeCalibration& out) {
   for (const CurveInfluence& influence : out.influences)
     variance += influence.change * influence.change;
   out.material.setTransmissionUncertainty(std::sqrt(variance));
+  // The inputs whose curve moves the measurement's budget propagates one by
+  // one (material/exponential_sum.h): all but the scatter's, which go with
+  // the scatter's own components (material/scatter_curves.h).
+  std::vector<CurveMove> moves;
+  double besides = variance;
+  for (const CurveInfluence& influence : out.influences) {
+    if (!influence.moved || influence.name == kScatterWeightInfluence ||
+        influence.name == kScatterWidthInfluence)
+      continue;
+    moves.push_back({influence.name, influence.unit, influence.value, influence.uncertainty,
+                     influence.change, *influence.moved});
+    besides -= influence.change * influence.change;
+  }
+  out.material.setCurveMoves(std::move(moves), std::sqrt(std::max(0.0, besides)));
   if (std::sqrt(variance) > kLargeCurveUncertainty) {
     std::string largest = "table";
     double change = out.table_uncertainty;

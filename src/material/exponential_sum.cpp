@@ -27,7 +27,23 @@ ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
   const std::string model = node.get<std::string>("model");
   const std::string description = node.get<std::string>("description", "");
   double uncertainty = kDefaultTransmissionUncertainty;
-  if (auto u = node.find("uncertainty")) uncertainty = u->at("transmission").number(0.0, 0.5);
+  std::vector<CurveMove> moves;
+  double besides = 0.0;
+  if (auto u = node.find("uncertainty")) {
+    uncertainty = u->at("transmission").number(0.0, 0.5);
+    if (auto list = u->find("curve_moves")) {
+      besides = u->at("besides_curve_moves").number(0.0, 0.5);
+      for (size_t i = 0; i < list->size(); ++i) {
+        const ConfigNode move = (*list)[i];
+        const ConfigNode curve = move.at("curve");
+        moves.push_back({move.get<std::string>("name"), move.get<std::string>("unit"),
+                         move.at("value").number(), move.at("standard_uncertainty").number(0.0, 1e6),
+                         move.at("curve_change").number(0.0, 1.0), fromConfig(curve)});
+        if (!(moves.back().standard_uncertainty > 0.0))
+          move.at("standard_uncertainty").fail("expected a positive standard uncertainty");
+      }
+    }
+  }
   // A wedge calibration's detector scatter (calibrate/wedge.h): read by the
   // measurement that uses the material (measure/inputs.cpp), not by the curve.
   static_cast<void>(node.find("scatter"));
@@ -57,6 +73,7 @@ ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
       ExponentialSum out(std::move(terms), description);
       out.transmission_uncertainty_ = uncertainty;
       out.calibrated_range_ = range;
+      if (!moves.empty()) out.setCurveMoves(std::move(moves), besides);
       return out;
     }
     if (model == "monochromatic") {
@@ -69,6 +86,7 @@ ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
                              : description);
       out.transmission_uncertainty_ = uncertainty;
       out.calibrated_range_ = range;
+      if (!moves.empty()) out.setCurveMoves(std::move(moves), besides);
       return out;
     }
   } catch (const Error& e) {
@@ -92,8 +110,39 @@ nlohmann::json ExponentialSum::toJson() const {
   nlohmann::json out = {{"model", "exponential_sum"}, {"terms", terms}};
   if (!description_.empty()) out["description"] = description_;
   out["uncertainty"] = {{"transmission", transmission_uncertainty_}};
+  if (moves_) {
+    nlohmann::json moves = nlohmann::json::array();
+    for (const CurveMove& move : *moves_) {
+      const nlohmann::json curve = move.curve.toJson();
+      moves.push_back({{"name", move.name},
+                       {"value", move.value},
+                       {"standard_uncertainty", move.standard_uncertainty},
+                       {"unit", move.unit},
+                       {"curve_change", move.curve_change},
+                       {"curve", {{"model", curve.at("model")}, {"terms", curve.at("terms")}}}});
+    }
+    out["uncertainty"]["curve_moves"] = moves;
+    out["uncertainty"]["besides_curve_moves"] = moves_besides_;
+  }
   if (calibrated_range_) out["calibrated_range_mm"] = *calibrated_range_;
   return out;
+}
+
+const std::vector<CurveMove>& ExponentialSum::curveMoves() const {
+  static const std::vector<CurveMove> kNone;
+  return moves_ ? *moves_ : kNone;
+}
+
+void ExponentialSum::setCurveMoves(std::vector<CurveMove> moves, double besides) {
+  if (!(besides >= 0.0) || !std::isfinite(besides))
+    fail("the curve's uncertainty besides its moves must be >= 0, got {}", besides);
+  for (const CurveMove& move : moves)
+    if (!(move.standard_uncertainty > 0.0) || !(move.curve_change >= 0.0))
+      fail("curve move '{}': its standard uncertainty must be positive and its change >= 0",
+           move.name);
+  moves_besides_ = besides;
+  moves_ = moves.empty() ? nullptr
+                         : std::make_shared<const std::vector<CurveMove>>(std::move(moves));
 }
 
 double ExponentialSum::rateScaleFor(double transmission, double longest_mm) const {
@@ -114,6 +163,8 @@ ExponentialSum ExponentialSum::withScaledRates(double relative) const {
   ExponentialSum out(std::move(terms), description_);
   out.transmission_uncertainty_ = transmission_uncertainty_;
   out.calibrated_range_ = calibrated_range_;
+  out.moves_ = moves_;
+  out.moves_besides_ = moves_besides_;
   return out;
 }
 

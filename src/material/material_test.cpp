@@ -102,6 +102,51 @@ TEST(ExponentialSum, CalibratedRangeRoundTrips) {
   }
 }
 
+// A calibration's curve moves (one input moved by its u, and the curve it
+// calibrates) come back from the file as written, survive a scaling of the
+// rates, and a move that is not a valid curve or has no uncertainty is
+// refused naming its key.
+TEST(ExponentialSum, CurveMovesRoundTrip) {
+  ExponentialSum m = threeTerms();
+  m.setTransmissionUncertainty(0.0012);
+  m.setCurveMoves({{"wedge thin_end", "mm", 0.2, 0.01, 0.001, m.withScaledRates(0.01)},
+                   {"wedge thickness", "mm", 20.0, 0.01, 0.0002, m.withScaledRates(-0.002)}},
+                  0.0006);
+  const auto root = ConfigNode::parse(m.toJson().dump(), "material.json");
+  const ExponentialSum back = ExponentialSum::fromConfig(root);
+  EXPECT_NO_THROW(root.finish());
+  ASSERT_EQ(back.curveMoves().size(), 2u);
+  EXPECT_EQ(back.curveMovesBesides(), 0.0006);
+  EXPECT_EQ(back.transmissionUncertainty(), 0.0012);
+  const CurveMove& thin = back.curveMoves()[0];
+  EXPECT_EQ(thin.name, "wedge thin_end");
+  EXPECT_EQ(thin.unit, "mm");
+  EXPECT_EQ(thin.value, 0.2);
+  EXPECT_EQ(thin.standard_uncertainty, 0.01);
+  EXPECT_EQ(thin.curve_change, 0.001);
+  for (double x : {0.0, 3.0, 12.0})
+    EXPECT_DOUBLE_EQ(thin.curve.transmission(x), m.withScaledRates(0.01).transmission(x));
+  EXPECT_EQ(back.withScaledRates(0.1).curveMoves().size(), 2u);
+  EXPECT_TRUE(threeTerms().curveMoves().empty());
+  EXPECT_FALSE(threeTerms().toJson().at("uncertainty").contains("curve_moves"));
+
+  nlohmann::json bad = m.toJson();
+  bad["uncertainty"]["curve_moves"][1]["standard_uncertainty"] = 0.0;
+  expectErrorMentioning(
+      [&] { ExponentialSum::fromConfig(ConfigNode::parse(bad.dump(), "material.json")); },
+      "/uncertainty/curve_moves/1/standard_uncertainty");
+  bad = m.toJson();
+  bad["uncertainty"]["curve_moves"][0]["curve"]["terms"][0]["weight"] = -1.0;
+  expectErrorMentioning(
+      [&] { ExponentialSum::fromConfig(ConfigNode::parse(bad.dump(), "material.json")); },
+      "/uncertainty/curve_moves/0/curve");
+  bad = m.toJson();
+  bad["uncertainty"].erase("besides_curve_moves");
+  expectErrorMentioning(
+      [&] { ExponentialSum::fromConfig(ConfigNode::parse(bad.dump(), "material.json")); },
+      "besides_curve_moves");
+}
+
 TEST(ExponentialSum, MonochromaticFromConfig) {
   auto root = ConfigNode::parse(
       R"({"model": "monochromatic", "compound": "Al", "density_g_cm3": 2.699, "energy_kev": 100})",

@@ -25,6 +25,9 @@ constexpr int kBlockPx = 16;  // cluster size of the sandwich (uncertainty.h)
 // does not cancel (groove_left - groove_right: U 0.010 mm, error 0.078 mm).
 constexpr double kCombinationCorrelation = 0.99;
 constexpr double kCombinationGain = 0.2;
+// A material's curve move (a calibration input) smaller than this share of
+// its largest is propagated with the rest of the curve's uncertainty.
+constexpr double kMinorMoveShare = 0.1;
 constexpr int kResolveIterations = 10;  // from theta, for an influence moved by u
 constexpr int kResolveWidthPx = 1024;   // level of those re-solves (at least the fit's)
 constexpr double kGeometricNullRatio = 1e-10;  // of the vertex velocities' scaled normal
@@ -267,22 +270,54 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
         "the material is fitted with the dimensions (a calibration): only the statistical part "
         "is given");
   } else {
-    // The scale of the rates that moves the curve by u at the worst path:
-    // dI/d(scale) = -x sum a_k mu_k exp(-mu_k x).
+    const ExponentialSum& material = model.material();
+    // The curve's own moves (a wedge's caliper dimensions): each one is a
+    // component with its own curve. Those that move the curve by less than
+    // kMinorMoveShare of the largest go with the rest, to save their renders.
+    double rest2 = material.transmissionUncertainty() * material.transmissionUncertainty();
+    const std::vector<CurveMove>& moves = material.curveMoves();
+    if (!moves.empty()) {
+      rest2 = material.curveMovesBesides() * material.curveMovesBesides();
+      double largest = 0.0;
+      for (const CurveMove& move : moves) largest = std::max(largest, move.curve_change);
+      for (const CurveMove& move : moves) {
+        if (move.curve_change < kMinorMoveShare * largest) {
+          rest2 += move.curve_change * move.curve_change;
+          continue;
+        }
+        ForwardModel moved(inputs, move.curve);
+        moved.setEdgeSamples(model.edgeSamples());
+        propagateInfluence(
+            moved,
+            {"material: " + move.name,
+             fmt::format("{} = {:.4g} +- {:.2g} {}, the curve it calibrated", move.name,
+                         move.value, move.standard_uncertainty, move.unit),
+             move.unit, move.standard_uncertainty, {}},
+            Propagation::kLinearised);
+      }
+    }
     // When the scatter comes from the material's calibration and the file
     // says how the curve moves with it, the scatter's share of the curve's
-    // uncertainty goes with the scatter's components below.
-    const ExponentialSum& material = model.material();
-    const double u = model.inputs().scatter_curves
-                         ? model.inputs().scatter_curves->transmission_uncertainty_besides
-                         : material.transmissionUncertainty();
+    // uncertainty goes with the scatter's components below: what is left is
+    // besides_scatter^2 - (u^2 - rest^2).
+    if (const auto& curves = inputs.scatter_curves) {
+      const double u = material.transmissionUncertainty();
+      rest2 -= u * u - curves->transmission_uncertainty_besides *
+                           curves->transmission_uncertainty_besides;
+    }
+    const double u = std::sqrt(std::max(0.0, rest2));
+    // The rest as a scale of the rates that moves the curve by u at the
+    // worst path: dI/d(scale) = -x sum a_k mu_k exp(-mu_k x).
     const double scale = material.rateScaleFor(u, model.partSizeMm());
     if (scale > 0.0) {
       ForwardModel moved(inputs, material.withScaledRates(scale));
       moved.setEdgeSamples(model.edgeSamples());
       propagateInfluence(
           moved,
-          {"material", fmt::format("transmission curve, u = {:.2g}", u), "transmission", u, {}},
+          {"material",
+           fmt::format("transmission curve, u = {:.2g}{}", u,
+                       moves.empty() ? "" : " besides the calibration's inputs"),
+           "transmission", u, {}},
           Propagation::kLinearised);
     }
   }

@@ -394,6 +394,46 @@ TEST_F(Uncertainty, TheScatterAndTheCurveItCalibratedMoveTogether) {
   }
 }
 
+// A material whose file lists how its curve moves with the inputs of its
+// calibration (a wedge's caliper dimensions): each move of at least a tenth
+// of the largest is a component of its own, propagated with its own curve,
+// and the rest of the curve's u is the "material" component as before, the
+// smaller moves folded into it. Here the listed curve is the one a scale of
+// the rates gives, so its component must be the material component of the
+// same material without moves; the rest, half of u and a twentieth, scales
+// that component by their root sum of squares.
+TEST_F(Uncertainty, EachOfTheCurvesMovesIsAComponentOfItsOwn) {
+  Scene plain;
+  const MeasurementResult without = measureScene(plain);
+  const double u = plain.material.transmissionUncertainty();
+  const double scale = plain.material.rateScaleFor(u, model_->partSizeMm());
+  ASSERT_GT(scale, 0.0);
+  Scene listed = plain;
+  listed.material.setTransmissionUncertainty(u * std::sqrt(1.0 + 0.25 + 0.0025));
+  listed.material.setCurveMoves(
+      {{"wedge thin_end", "mm", 0.2, 0.01, u, plain.material.withScaledRates(scale)},
+       {"wedge wall", "mm", 9.0, 0.02, 0.05 * u, plain.material.withScaledRates(0.05 * scale)}},
+      0.5 * u);
+  const MeasurementResult with = measureScene(listed);
+  const double rest = std::hypot(0.5, 0.05);
+  for (size_t k = 0; k < with.dimensions.size(); ++k) {
+    const std::string& name = with.dimensions[k].name;
+    EXPECT_EQ(with.dimensions[k].value, without.dimensions[k].value) << name;
+    const UncertaintyComponent& m = component(without, name, "material");
+    const UncertaintyComponent& thin = component(with, name, "material: wedge thin_end");
+    EXPECT_EQ(thin.standard_uncertainty, 0.01);
+    EXPECT_EQ(thin.unit, "mm");
+    EXPECT_NEAR(thin.sensitivity * thin.standard_uncertainty, m.sensitivity * m.standard_uncertainty,
+                1e-9 + 1e-6 * m.contribution)
+        << name;
+    EXPECT_NEAR(component(with, name, "material").contribution, rest * m.contribution,
+                1e-6 + 0.02 * m.contribution)
+        << name;
+    for (const auto& d : with.uncertainty.dimensions)
+      for (const auto& c : d.components) EXPECT_NE(c.name, "material: wedge wall");
+  }
+}
+
 TEST_F(Uncertainty, TwoEdgesThatMoveWithThePartAreReportedAsTheirSum) {
   // A box whose left and right faces are two dimensions measured from the
   // part origin: moving both by the same amount is a translation of the

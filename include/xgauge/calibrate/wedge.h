@@ -126,6 +126,7 @@ struct CurveInfluence {
   // The curve calibrated with the influence moved by +uncertainty (absent
   // for an influence without one, such as the unmeasured halo).
   std::optional<ExponentialSum> moved;
+  std::string unit = "mm";  // of value and uncertainty (every input but the scatter weight's)
 };
 
 struct WedgeCalibration {

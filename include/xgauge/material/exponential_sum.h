@@ -14,7 +14,9 @@
 //   density_g_cm3    monochromatic: density in g/cm^3
 //   energy_kev       monochromatic: photon energy in keV
 //   description      optional free text
-//   uncertainty      optional {"transmission": u}, see transmissionUncertainty()
+//   uncertainty      optional {"transmission": u, "curve_moves": [...],
+//                    "besides_curve_moves": u_rest}, see transmissionUncertainty()
+//                    and curveMoves()
 //   calibrated_range_mm  optional [low, high]: the paths its calibration
 //                    saw; a measurement warns when its part has longer paths
 // A monochromatic material is one term with mu from xraylib.
@@ -24,11 +26,14 @@
 
 #include <array>
 #include <filesystem>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 namespace xgauge {
+
+struct CurveMove;
 
 struct ExponentialTerm {
   double weight = 1.0;     // a_k, dimensionless
@@ -57,6 +62,23 @@ class ExponentialSum {
   static constexpr double kDefaultTransmissionUncertainty = 0.001;
   double transmissionUncertainty() const { return transmission_uncertainty_; }
   void setTransmissionUncertainty(double u) { transmission_uncertainty_ = u; }
+  // How the curve moves with each input of its calibration that has a
+  // shape of its own (a wedge's caliper dimensions): the curve calibrated
+  // with that input moved by its standard uncertainty. A wedge's thin end
+  // moves the curve most at the shortest paths and hardly at all at 15 mm;
+  // one transmission u for all, propagated as a scale of the rates that
+  // reaches u at the worst path, laid the thin end's 0.001 on a 13 mm
+  // thickness as well and made its U four times what the errors showed.
+  // The budget propagates each move with its own curve, and the rest of the
+  // uncertainty (curveMovesBesides(): the table's, the scatter's, what no
+  // move lists) as before. Empty for a curve whose file lists none.
+  const std::vector<CurveMove>& curveMoves() const;
+  // The transmission uncertainty from everything but curveMoves(): with
+  // the moves, transmissionUncertainty()^2 = besides^2 + sum of their
+  // curve_change^2.
+  double curveMovesBesides() const { return moves_besides_; }
+  // Throws Error when `besides` is negative or a move is invalid.
+  void setCurveMoves(std::vector<CurveMove> moves, double besides);
   // The path lengths (mm) the curve was calibrated over, when its file
   // says; beyond them it is extrapolated.
   const std::optional<std::array<double, 2>>& calibratedRange() const { return calibrated_range_; }
@@ -74,6 +96,21 @@ class ExponentialSum {
   std::string description_;
   double transmission_uncertainty_ = kDefaultTransmissionUncertainty;
   std::optional<std::array<double, 2>> calibrated_range_;
+  std::shared_ptr<const std::vector<CurveMove>> moves_;  // null: none
+  double moves_besides_ = 0.0;
+};
+
+// One input of a calibration and the curve it calibrates when moved by its
+// standard uncertainty (ExponentialSum::curveMoves()). In JSON:
+//   {"name": "wedge thin_end", "value": 0.2, "standard_uncertainty": 0.01,
+//    "unit": "mm", "curve_change": 0.001,
+//    "curve": {"model": "exponential_sum", "terms": [...]}}
+// curve_change: the largest difference of the two curves over the
+// calibrated range.
+struct CurveMove {
+  std::string name, unit;
+  double value = 0.0, standard_uncertainty = 0.0, curve_change = 0.0;
+  ExponentialSum curve;
 };
 
 }  // namespace xgauge

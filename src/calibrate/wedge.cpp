@@ -284,6 +284,7 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
     frames.previous = &*previous;
     frames.previous_name = spec.previous.string();
     frames.lag_fraction = machine.lag_fraction;
+    frames.lag_fraction_uncertainty = machine.lagFractionUncertainty();
   }
   NormalizedRadiograph prepared =
       normalizeRadiograph(std::move(raw), frames, spec.white_region, ClampPolicy::kNone, name);

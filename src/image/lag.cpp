@@ -285,12 +285,12 @@ LagEstimate estimateLag(const Image& current_full, const Image& previous_full, d
 }
 
 std::string describeLag(const LagEstimate& lag) {
-  if (lag.uncertainty > 0.0)
+  if (!lag.stated)
     return fmt::format(
         "fraction {:.5f} +- {:.5f} (estimated over {} pixels of open beam near "
         "the previous frame's edges)",
         lag.fraction, lag.uncertainty, lag.pixels);
-  return fmt::format("fraction {:.5f} (the machine's)", lag.fraction);
+  return fmt::format("fraction {:.5f} +- {:.2g} (the machine's)", lag.fraction, lag.uncertainty);
 }
 
 void subtractLag(Image& current, const Image& previous, double fraction) {

@@ -41,6 +41,8 @@ void subtractPreviousLag(NormalizedRadiograph& out, const RadiographFrames& fram
            name, previous_name, lag.fraction, lag.uncertainty, lag.pixels, lag.structure);
   } else {
     lag.fraction = frames.lag_fraction;
+    lag.uncertainty = frames.lag_fraction_uncertainty;
+    lag.stated = true;
   }
   subtractLag(out.image, previous, lag.fraction);
   out.lag = lag;

@@ -385,7 +385,8 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
                });
   }
 
-  // The lag fraction estimated from a radiograph and its previous frame:
+  // The lag fraction, estimated from a radiograph and its previous frame or
+  // the machine's:
   // moved by u, the radiograph loses u more of that frame's signal, and its
   // white region as much of its own, by which it is divided again.
   for (size_t k = 0; k < inputs.radiographs.size(); ++k) {
@@ -407,7 +408,8 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       continue;
     }
     withInputs(how, name,
-               fmt::format("g = {:.5f} +- {:.2g} (estimated)", radiograph.lag->fraction, u),
+               fmt::format("g = {:.5f} +- {:.2g} ({})", radiograph.lag->fraction, u,
+                           radiograph.lag->stated ? "the machine's" : "estimated"),
                "1", u, [&](MeasurementInputs& in, double amount) {
                  auto moved = std::make_shared<PreparedRadiograph>(radiograph);
                  const double step = amount * u;

@@ -125,6 +125,7 @@ std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
       given.previous = &frame(spec.previous);
       given.previous_name = spec.previous.string();
       given.lag_fraction = machine.lag_fraction;
+      given.lag_fraction_uncertainty = machine.lagFractionUncertainty();
     }
     out.push_back(std::make_shared<const PreparedRadiograph>(
         prepareRadiograph(previous_frames.count(spec.image) ? Image(frame(spec.image))

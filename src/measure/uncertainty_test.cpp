@@ -345,7 +345,10 @@ TEST_F(Uncertainty, TheLagOfThePreviousFrameIsEstimatedSubtractedAndBudgeted) {
   lagging.stated_lag = lag.fraction + 3.0 * lag.uncertainty;
   const MeasurementResult stated = measureScene(lagging);
   ASSERT_TRUE(inputs_->radiographs[1]->lag.has_value());
-  EXPECT_EQ(inputs_->radiographs[1]->lag->uncertainty, 0.0);  // the machine's: not budgeted
+  // The machine's fraction is budgeted too, with a tenth of itself when the
+  // machine states no uncertainty; its sensitivity is the estimate's.
+  EXPECT_TRUE(inputs_->radiographs[1]->lag->stated);
+  EXPECT_DOUBLE_EQ(inputs_->radiographs[1]->lag->uncertainty, 0.1 * lagging.stated_lag);
   for (size_t k = 0; k < corrected.dimensions.size(); ++k) {
     const std::string& name = corrected.dimensions[k].name;
     const UncertaintyComponent& c = component(corrected, name, "detector lag b");
@@ -353,6 +356,9 @@ TEST_F(Uncertainty, TheLagOfThePreviousFrameIsEstimatedSubtractedAndBudgeted) {
     const double predicted = 3.0 * c.sensitivity * lag.uncertainty;
     const double actual = stated.dimensions[k].value - corrected.dimensions[k].value;
     EXPECT_NEAR(actual, predicted, 0.2 * std::abs(predicted) + 1e-3) << name;
+    const UncertaintyComponent& s = component(stated, name, "detector lag b");
+    EXPECT_EQ(s.standard_uncertainty, 0.1 * lagging.stated_lag);
+    EXPECT_NEAR(s.sensitivity, c.sensitivity, 0.1 * std::abs(c.sensitivity) + 0.01) << name;
   }
 }
 

@@ -290,8 +290,8 @@ nlohmann::json wedgeLagJson(const WedgeCalibrationJob& job, const WedgeCalibrati
   if (!result.lag) return nullptr;
   nlohmann::json lag = {{"previous", job.radiograph.previous.string()},
                         {"fraction", result.lag->fraction},
-                        {"source", result.lag->uncertainty > 0.0 ? "estimated" : "machine"}};
-  if (result.lag->uncertainty > 0.0) lag["uncertainty"] = result.lag->uncertainty;
+                        {"source", result.lag->stated ? "machine" : "estimated"},
+                        {"uncertainty", result.lag->uncertainty}};
   return lag;
 }
 

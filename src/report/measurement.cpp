@@ -126,11 +126,9 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
     if (rad.lag) {
       nlohmann::json lag = {{"previous", spec.previous.string()},
                             {"fraction", rad.lag->fraction},
-                            {"source", rad.lag->uncertainty > 0.0 ? "estimated" : "machine"}};
-      if (rad.lag->uncertainty > 0.0) {
-        lag["uncertainty"] = rad.lag->uncertainty;
-        lag["open_beam_pixels"] = rad.lag->pixels;
-      }
+                            {"source", rad.lag->stated ? "machine" : "estimated"},
+                            {"uncertainty", rad.lag->uncertainty}};
+      if (!rad.lag->stated) lag["open_beam_pixels"] = rad.lag->pixels;
       radiographs.back()["lag"] = std::move(lag);
     }
   }

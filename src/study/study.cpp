@@ -304,6 +304,7 @@ std::shared_ptr<const PreparedRadiograph> PreparedShots::get(const RadiographSpe
       frames.previous = &*previous;
       frames.previous_name = spec.previous.string();
       frames.lag_fraction = machine_.lag_fraction;
+      frames.lag_fraction_uncertainty = machine_.lagFractionUncertainty();
     }
     it = prepared_
              .emplace(spec.image.string(),
@@ -358,6 +359,15 @@ void applyStudyLag(nlohmann::json& settings, nlohmann::json& machine,
     fail("{}: a lag is only subtracted with \"previous_frames\": true", where);
   machine["detector"]["lag_fraction"] = lag;
   settings.erase("lag_fraction");
+  // Its standard uncertainty, when the lab knows it (else the machine's
+  // default, a tenth of the fraction).
+  if (const auto u = settings.find("lag_fraction_uncertainty"); u != settings.end()) {
+    const std::string at = settings_file.string() + ": /lag_fraction_uncertainty";
+    if (!u->is_number() || !(u->get<double>() >= 0.0 && u->get<double>() <= 0.5))
+      fail("{}: expected a number from 0 to 0.5", at);
+    machine["uncertainty"]["lag_fraction"] = u->get<double>();
+    settings.erase("lag_fraction_uncertainty");
+  }
 }
 
 }  // namespace

@@ -45,6 +45,11 @@ Machine Machine::fromConfig(const ConfigNode& node) {
       m.source_detector_distance_uncertainty_mm = d->number(0.0, 1e3);
     if (auto p = u->find("pixel_pitch_relative"))
       m.pixel_pitch_uncertainty_relative = p->number(0.0, 0.1);
+    if (auto g = u->find("lag_fraction")) {
+      if (std::isnan(m.lag_fraction))
+        g->fail("a lag fraction's uncertainty needs detector.lag_fraction");
+      m.lag_fraction_uncertainty = g->number(0.0, 0.5);
+    }
   }
   return m;
 }
@@ -65,6 +70,12 @@ void Machine::validate() const {
   if (!std::isfinite(cx_px) || !std::isfinite(cy_px)) fail("principal point must be finite");
 }
 
+double Machine::lagFractionUncertainty() const {
+  if (std::isnan(lag_fraction)) return 0.0;
+  if (!std::isnan(lag_fraction_uncertainty)) return lag_fraction_uncertainty;
+  return kDefaultLagUncertaintyRelative * lag_fraction;
+}
+
 nlohmann::json Machine::toJson() const {
   nlohmann::json out = {
       {"source_detector_distance_mm", source_detector_distance_mm},
@@ -77,6 +88,8 @@ nlohmann::json Machine::toJson() const {
        {{"source_detector_distance_mm", source_detector_distance_uncertainty_mm},
         {"pixel_pitch_relative", pixel_pitch_uncertainty_relative}}}};
   if (!std::isnan(lag_fraction)) out["detector"]["lag_fraction"] = lag_fraction;
+  if (!std::isnan(lag_fraction_uncertainty))
+    out["uncertainty"]["lag_fraction"] = lag_fraction_uncertainty;
   if (!description.empty()) out["description"] = description;
   return out;
 }

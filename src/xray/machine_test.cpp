@@ -49,6 +49,34 @@ TEST(Machine, BadValuesNameTheKey) {
   EXPECT_THROW(Machine::fromConfig(fractional), Error);
 }
 
+// A stated lag fraction carries a standard uncertainty: the machine's, or a
+// tenth of the fraction; none without a fraction, and an uncertainty
+// without a fraction is refused naming its key.
+TEST(Machine, AStatedLagHasAnUncertainty) {
+  const std::string base = R"("source_detector_distance_mm": 500,
+    "detector": {"columns": 64, "rows": 32, "pixel_pitch_mm": [0.1, 0.1])";
+  const Machine none = Machine::fromConfig(ConfigNode::parse("{" + base + "}}", "m.json"));
+  EXPECT_EQ(none.lagFractionUncertainty(), 0.0);
+  const Machine stated = Machine::fromConfig(
+      ConfigNode::parse("{" + base + R"(, "lag_fraction": 0.004}})", "m.json"));
+  EXPECT_DOUBLE_EQ(stated.lagFractionUncertainty(), 0.0004);
+  auto given = ConfigNode::parse(
+      "{" + base + R"(, "lag_fraction": 0.004}, "uncertainty": {"lag_fraction": 0.0002}})",
+      "m.json");
+  const Machine known = Machine::fromConfig(given);
+  EXPECT_NO_THROW(given.finish());
+  EXPECT_EQ(known.lagFractionUncertainty(), 0.0002);
+  const Machine again = Machine::fromConfig(ConfigNode::fromJson(known.toJson(), "x"));
+  EXPECT_EQ(again.lagFractionUncertainty(), 0.0002);
+  try {
+    Machine::fromConfig(
+        ConfigNode::parse("{" + base + R"(}, "uncertainty": {"lag_fraction": 0.001}})", "m.json"));
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.where().key_path, "/uncertainty/lag_fraction");
+  }
+}
+
 TEST(PoseConfig, EulerAndMatrixAgree) {
   auto euler = ConfigNode::parse(
       R"({"rotation_deg": [10, 20, 30], "translation_mm": [1, 2, 300]})", "p.json");

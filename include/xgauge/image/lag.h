@@ -38,6 +38,9 @@ struct LagEstimate {
   // squares of its band-pass over those pixels divided by what noise alone
   // would give (1: nothing but noise).
   double structure = 0.0;
+  // The machine's fraction, not an estimate: `uncertainty` is then the
+  // machine's (Machine::lagFractionUncertainty()).
+  bool stated = false;
 };
 
 // Estimates g from `current` and `previous`, both flat-field corrected (not
@@ -54,7 +57,7 @@ LagEstimate estimateLag(const Image& current, const Image& previous, double open
                         const std::string& name);
 
 // "fraction F +- U (estimated over N pixels of open beam)", or
-// "fraction F (the machine's)" when stated (uncertainty 0).
+// "fraction F +- U (the machine's)" when stated.
 std::string describeLag(const LagEstimate& lag);
 
 // current -= fraction * previous, pixel by pixel (sizes must match).

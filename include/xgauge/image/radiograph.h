@@ -36,6 +36,7 @@ struct RadiographFrames {
   const Image* previous = nullptr;
   std::string previous_name;  // its file, for messages
   double lag_fraction = std::numeric_limits<double>::quiet_NaN();
+  double lag_fraction_uncertainty = 0.0;  // of a known lag_fraction (standard)
 };
 
 struct NormalizedRadiograph {

@@ -17,6 +17,8 @@
 //                                    signal the next frame records (image/lag.h);
 //                                    absent: estimated where a job names the
 //                                    previous frame
+//   uncertainty.lag_fraction         optional, 0..0.5: the standard uncertainty
+//                                    of lag_fraction (default: a tenth of it)
 //   description                      optional free text
 //
 // Pose JSON keys (a pose maps part to world coordinates, x_w = R x_p + t):
@@ -50,11 +52,22 @@ struct Machine {
   // "uncertainty"; docs/formats.md): they enter every measurement's budget.
   double source_detector_distance_uncertainty_mm = kDefaultDistanceUncertaintyMm;
   double pixel_pitch_uncertainty_relative = kDefaultPitchUncertaintyRelative;
+  // Of a stated lag_fraction (key "uncertainty": {"lag_fraction": u}); NaN:
+  // not stated, lagFractionUncertainty() then gives the default.
+  double lag_fraction_uncertainty = std::numeric_limits<double>::quiet_NaN();
+  // The standard uncertainty of the stated lag fraction: the machine's, else
+  // kDefaultLagUncertaintyRelative of the fraction (0 without a fraction).
+  double lagFractionUncertainty() const;
   // Defaults when a machine file states none: a source-detector distance
   // taken from a drawing or a tape (0.5 mm), and a pitch as the panel's
   // data sheet gives it (1e-4 of the pitch).
   static constexpr double kDefaultDistanceUncertaintyMm = 0.5;
   static constexpr double kDefaultPitchUncertaintyRelative = 1e-4;
+  // A panel's lag changes with the exposure before and the time between
+  // frames; a fraction taken from a data sheet or from earlier pairs is
+  // known to about a tenth of itself (the replica's six estimates from one
+  // session spread by 4 %; a data sheet quotes one figure for all timings).
+  static constexpr double kDefaultLagUncertaintyRelative = 0.1;
 
   static Machine fromConfig(const ConfigNode& node);  // validates; does not call finish()
   static Machine load(const std::filesystem::path& path);

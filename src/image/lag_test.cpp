@@ -158,11 +158,17 @@ TEST(Lag, APairThatCannotTellTheLagStopsAndAStatedFractionIsUsed) {
     EXPECT_NE(message.find("lag_fraction"), std::string::npos) << message;
   }
   frames.lag_fraction = 0.003;
+  frames.lag_fraction_uncertainty = 0.0002;
   const NormalizedRadiograph n = normalizeRadiograph(pair.current, frames, PixelRect{4, 4, 40, 40},
                                                      ClampPolicy::kNone, "shot.tif");
   ASSERT_TRUE(n.lag.has_value());
   EXPECT_EQ(n.lag->fraction, 0.003);
-  EXPECT_EQ(n.lag->uncertainty, 0.0);
+  // The machine's fraction, with the machine's uncertainty, and its signal
+  // kept for the budget.
+  EXPECT_TRUE(n.lag->stated);
+  EXPECT_EQ(n.lag->uncertainty, 0.0002);
+  EXPECT_FALSE(n.lag_signal.empty());
+  EXPECT_EQ(describeLag(*n.lag), "fraction 0.00300 +- 0.0002 (the machine's)");
   // The pixel (300, 256), behind the slab, lost 0.003 of the previous frame there.
   const double expected = (static_cast<double>(pair.current(300, 256)) -
                            0.003 * static_cast<double>(pair.previous(300, 256))) /

@@ -285,6 +285,8 @@ TEST_F(Hostile, AStudysStatedLagIsSubtractedAsStated) {
   const auto& lag = result["radiographs"][1]["lag"];
   EXPECT_EQ(lag["source"], "machine") << lag;
   EXPECT_DOUBLE_EQ(lag["fraction"].get<double>(), 0.0125);
+  // With the machine's default uncertainty, a tenth of the fraction.
+  EXPECT_DOUBLE_EQ(lag["uncertainty"].get<double>(), 0.00125);
 
   std::string high = tinySettings();
   high.insert(1, R"("previous_frames": true, "lag_fraction": 0.7, )");
@@ -299,6 +301,21 @@ TEST_F(Hostile, AStudysStatedLagIsSubtractedAsStated) {
   EXPECT_NE(without.status, 0);
   EXPECT_NE(without.output.find("only subtracted with \"previous_frames\": true"), std::string::npos)
       << without.output;
+  // An uncertainty without the fraction it belongs to, and one out of range.
+  std::string orphan = tinySettings();
+  orphan.insert(1, R"("previous_frames": true, "lag_fraction_uncertainty": 0.001, )");
+  const CommandResult lone = run(study + write("orphan.json", orphan));
+  EXPECT_NE(lone.status, 0);
+  EXPECT_NE(lone.output.find("orphan.json: /lag_fraction_uncertainty: needs a \"lag_fraction\""),
+            std::string::npos)
+      << lone.output;
+  std::string wide = tinySettings();
+  wide.insert(1, R"("previous_frames": true, "lag_fraction": 0.01, "lag_fraction_uncertainty": -1, )");
+  const CommandResult negative = run(study + write("wide.json", wide));
+  EXPECT_NE(negative.status, 0);
+  EXPECT_NE(negative.output.find("wide.json: /lag_fraction_uncertainty: expected a number from 0 to 0.5"),
+            std::string::npos)
+      << negative.output;
 }
 
 // Item 5: a study run again with other settings used to return the old

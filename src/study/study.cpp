@@ -350,7 +350,11 @@ namespace {
 void applyStudyLag(nlohmann::json& settings, nlohmann::json& machine,
                    const fs::path& settings_file) {
   const auto it = settings.find("lag_fraction");
-  if (it == settings.end()) return;
+  if (it == settings.end()) {
+    if (settings.contains("lag_fraction_uncertainty"))
+      fail("{}: /lag_fraction_uncertainty: needs a \"lag_fraction\"", settings_file.string());
+    return;
+  }
   const std::string where = settings_file.string() + ": /lag_fraction";
   if (!it->is_number()) fail("{}: expected a number from 0 to 0.5", where);
   const double lag = it->get<double>();

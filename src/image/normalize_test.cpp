@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <string>
 
 namespace xgauge {
@@ -24,6 +25,10 @@ TEST(NormalizeRadiograph, DividesByWhiteMeanAndClampsAtOne) {
       normalizeRadiograph(raw, {}, PixelRect{4, 0, 2, 4}, ClampPolicy::kAtOne, "raw.tif");
   const Image& normalized = out.image;
   EXPECT_EQ(out.white_mean, 4000.0);
+  // Its uncertainty: 8 pixels of 3000 and 5000, standard deviation
+  // 1000 sqrt(8 / 7), divided by sqrt(8) and by the mean.
+  EXPECT_NEAR(out.white_mean_uncertainty, 1000.0 * std::sqrt(8.0 / 7.0) / std::sqrt(8.0) / 4000.0,
+              1e-12);
   EXPECT_EQ(normalized(1, 1), 0.25f);
   EXPECT_FLOAT_EQ(normalized(4, 2), 0.75f);
   EXPECT_EQ(normalized(5, 2), 1.0f);  // 1.25 clamped

@@ -74,6 +74,15 @@ NormalizedRadiograph normalizeRadiograph(Image raw, const RadiographFrames& fram
     if (!(out.white_mean > 0.0))
       fail("{}: the white region {} has mean {} (must be positive: is it in the open beam?)", name,
            toString(*white), out.white_mean);
+    double squares = 0.0;
+    for (int v = white->y; v < white->bottom(); ++v)
+      for (int u = white->x; u < white->right(); ++u) {
+        const double d = static_cast<double>(out.image(u, v)) - out.white_mean;
+        squares += d * d;
+      }
+    const auto n = static_cast<double>(white->area());
+    out.white_mean_uncertainty =
+        n > 1.0 ? std::sqrt(squares / (n - 1.0) / n) / out.white_mean : 0.0;
     const float scale = static_cast<float>(1.0 / out.white_mean);
     for (float& p : out.image.pixels()) p *= scale;
     for (float& p : out.lag_signal.pixels()) p *= scale;

@@ -426,6 +426,23 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
                });
   }
 
+  // The white region's mean, by which every pixel of a radiograph was
+  // divided: off by u (relative), the whole radiograph reads 1 / (1 + u) of
+  // what it should.
+  for (size_t k = 0; k < inputs.radiographs.size(); ++k) {
+    const PreparedRadiograph& radiograph = *inputs.radiographs[k];
+    const double u = radiograph.white_mean_uncertainty;
+    withInputs(Propagation::kLinearised, "normalisation " + inputs.job.radiographs[k].name,
+               fmt::format("white region's mean, relative u = {:.2g}", u), "relative", u,
+               [&](MeasurementInputs& in, double amount) {
+                 auto moved = std::make_shared<PreparedRadiograph>(radiograph);
+                 const auto scale = static_cast<float>(1.0 / (1.0 + amount * u));
+                 for (Image& image : moved->levels)
+                   for (float& p : image.pixels()) p *= scale;
+                 in.radiographs[k] = std::move(moved);
+               });
+  }
+
   // The total covariance and each free dimension's budget.
   Eigen::MatrixXd total = statistical;
   for (const Influence& f : influences) total += f.delta_theta * f.delta_theta.transpose();

@@ -66,6 +66,7 @@ PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
   PreparedRadiograph out;
   out.repaired_pixels = normalized.repaired_pixels;
   out.lag = normalized.lag;
+  out.white_mean_uncertainty = normalized.white_mean_uncertainty;
   if (out.lag)
     spdlog::info("{}: lag of {} subtracted, {}", name, spec.previous.string(),
                  describeLag(*out.lag));

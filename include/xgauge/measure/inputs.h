@@ -35,6 +35,8 @@ struct PreparedRadiograph {
   // kLagSignalWidthPx (the budget propagates the lag there); empty elsewhere.
   std::vector<Image> lag_signal_levels;
   double lag_signal_white = 0.0;  // its mean over the white region (about 1)
+  // The white region mean's relative standard uncertainty (NormalizedRadiograph).
+  double white_mean_uncertainty = 0.0;
   static constexpr int kLagSignalWidthPx = 2048;
 };
 

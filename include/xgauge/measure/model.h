@@ -173,6 +173,17 @@ class ForwardModel {
   ScatterEstimate spreadOf(const Image& coarse, int coarse_level, int radiograph, int level,
                            bool derivative) const;
   int scatterLevel(int level) const { return std::max(level, levelForWidth(128)); }
+  // The coarse render's pixels must be the area means of the fine image, as
+  // the scintillator blurs it: sampled at their centres only, an edge's share
+  // of the halo moves by up to half a coarse pixel, by a different amount at
+  // each position of the part (a transmission error of several 1e-4 per
+  // shot). 4 x 4 samples, the edges 16 x 16, leave 1/32 of a coarse pixel.
+  static RenderOptions scatterRenderOptions() {
+    RenderOptions options;
+    options.samples_per_axis = 4;
+    options.edge_samples_per_axis = 16;
+    return options;
+  }
   Image simulatePosed(const WorldMesh& mesh, int radiograph, int level, int samples,
                       const PixelRect& region);
   // Calls use(radiograph, roi, simulated roi) for each of `radiographs`;

@@ -177,11 +177,13 @@ class ForwardModel {
   // the scintillator blurs it: sampled at their centres only, an edge's share
   // of the halo moves by up to half a coarse pixel, by a different amount at
   // each position of the part (a transmission error of several 1e-4 per
-  // shot). 4 x 4 samples, the edges 16 x 16, leave 1/32 of a coarse pixel.
+  // shot). The edges sampled 8 x 8 leave 1/16 of a coarse pixel; inside the
+  // path is smooth and one sample per pixel does (measure_test: within 1e-6
+  // of the exact blur, as with 4 x 4 and 16 x 16, at a fifth of the cost).
   static RenderOptions scatterRenderOptions() {
     RenderOptions options;
-    options.samples_per_axis = 4;
-    options.edge_samples_per_axis = 16;
+    options.samples_per_axis = 1;
+    options.edge_samples_per_axis = 8;
     return options;
   }
   Image simulatePosed(const WorldMesh& mesh, int radiograph, int level, int samples,

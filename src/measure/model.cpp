@@ -433,7 +433,10 @@ bool ForwardModel::residualsAndJacobian(std::span<const double> theta, std::span
       IntensityDerivatives coarse;
       renderIntensityDerivatives(machineAt(coarse_level), mesh, transmission_, scatterRenderOptions(),
                                  velocities, count, coarse);
-      spread = spreadOf(coarse.intensity, coarse_level, r, level, false);
+      // The value from the render whose edges are refined (scatterOf), as
+      // residuals() has it: the render with derivatives samples each pixel
+      // once, which is the per-shot error scatterRenderOptions() removes.
+      spread = scatterOf(mesh, r, level);
       for (const Image& rate : coarse.per_parameter)
         spread_rates.push_back(spreadOf(rate, coarse_level, r, level, true));
     }

@@ -238,6 +238,22 @@ TEST_F(Uncertainty, TheFitsJacobianMatchesCentralDifferences) {
     EXPECT_LT(std::sqrt(e2 / n2), 5e-3) << name;
     EXPECT_LT(left_out, static_cast<int>(r.size()) / 100) << name;
   }
+  {
+    // With the scatter modelled too: its value comes from the same
+    // edge-refined coarse render in both (the render with derivatives
+    // samples each coarse pixel once, which would differ by up to 1e-4).
+    Scene scattered = scene;
+    ScatterModel halo;
+    halo.weight = 0.1;
+    halo.sigma_mm = 20.0;
+    scattered.scatter = halo;
+    const std::vector<double> at = measureScene(scattered).theta;
+    model_->setEdgeSamples(0);
+    std::vector<double> rs, js, cs;
+    ASSERT_TRUE(model_->residualsAndJacobian(at, model_->jointIndices(), 0, 2, both, rs, js));
+    ASSERT_TRUE(model_->residuals(at, 0, 2, both, cs));
+    ASSERT_EQ(rs, cs);
+  }
 }
 
 TEST_F(Uncertainty, TheStatisticalPartMatchesTheSpreadOverNoise) {

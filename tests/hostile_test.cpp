@@ -288,34 +288,25 @@ TEST_F(Hostile, AStudysStatedLagIsSubtractedAsStated) {
   // With the machine's default uncertainty, a tenth of the fraction.
   EXPECT_DOUBLE_EQ(lag["uncertainty"].get<double>(), 0.00125);
 
-  std::string high = tinySettings();
-  high.insert(1, R"("previous_frames": true, "lag_fraction": 0.7, )");
-  const CommandResult refused = run(study + write("high.json", high));
-  EXPECT_NE(refused.status, 0);
-  EXPECT_NE(refused.output.find("high.json: /lag_fraction: expected a number from 0 to 0.5"),
-            std::string::npos)
-      << refused.output;
-  std::string alone = tinySettings();
-  alone.insert(1, R"("lag_fraction": 0.01, )");
-  const CommandResult without = run(study + write("alone.json", alone));
-  EXPECT_NE(without.status, 0);
-  EXPECT_NE(without.output.find("only subtracted with \"previous_frames\": true"), std::string::npos)
-      << without.output;
+  // Settings with `keys` added are refused with `message`.
+  const auto refused = [&](const std::string& file, const std::string& keys,
+                           const std::string& message) {
+    std::string text = tinySettings();
+    text.insert(1, keys);
+    const CommandResult answer = run(study + write(file, text));
+    EXPECT_NE(answer.status, 0) << file;
+    EXPECT_NE(answer.output.find(message), std::string::npos) << answer.output;
+  };
+  refused("high.json", R"("previous_frames": true, "lag_fraction": 0.7, )",
+          "high.json: /lag_fraction: expected a number from 0 to 0.5");
+  refused("alone.json", R"("lag_fraction": 0.01, )",
+          "only subtracted with \"previous_frames\": true");
   // An uncertainty without the fraction it belongs to, and one out of range.
-  std::string orphan = tinySettings();
-  orphan.insert(1, R"("previous_frames": true, "lag_fraction_uncertainty": 0.001, )");
-  const CommandResult lone = run(study + write("orphan.json", orphan));
-  EXPECT_NE(lone.status, 0);
-  EXPECT_NE(lone.output.find("orphan.json: /lag_fraction_uncertainty: needs a \"lag_fraction\""),
-            std::string::npos)
-      << lone.output;
-  std::string wide = tinySettings();
-  wide.insert(1, R"("previous_frames": true, "lag_fraction": 0.01, "lag_fraction_uncertainty": -1, )");
-  const CommandResult negative = run(study + write("wide.json", wide));
-  EXPECT_NE(negative.status, 0);
-  EXPECT_NE(negative.output.find("wide.json: /lag_fraction_uncertainty: expected a number from 0 to 0.5"),
-            std::string::npos)
-      << negative.output;
+  refused("orphan.json", R"("previous_frames": true, "lag_fraction_uncertainty": 0.001, )",
+          "orphan.json: /lag_fraction_uncertainty: needs a \"lag_fraction\"");
+  refused("wide.json",
+          R"("previous_frames": true, "lag_fraction": 0.01, "lag_fraction_uncertainty": -1, )",
+          "wide.json: /lag_fraction_uncertainty: expected a number from 0 to 0.5");
 }
 
 // Item 5: a study run again with other settings used to return the old

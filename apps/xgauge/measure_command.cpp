@@ -76,6 +76,12 @@ int runMeasure(const MeasureArguments& args) {
                                c.expression, c.value, c.expanded)
                  : fmt::format("{:<18} {:>10.4f} {:>9.4f}  (the part's combination {})\n",
                                c.name, c.value, c.expanded, c.expression);
+  if (const auto& refined = result.uncertainty.refinement)
+    table += fmt::format(
+        "material refined in situ: rates x (1 {:+.5f}), u {:.5f} (prior {:.5f}); the curve "
+        "{:+.4f} at {:.1f} mm\n",
+        refined->rate_scale, refined->standard_uncertainty, refined->prior_standard_uncertainty,
+        refined->transmission_change, refined->at_path_mm);
   if (toleranced) table += fmt::format("Verdicts: {}.\n", kDecisionRule);
   if (!result.check.warnings.empty()) {
     table += fmt::format("{} warning(s):\n", result.check.warnings.size());

@@ -151,6 +151,11 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     const auto block = jacobian.middleRows(i, rows);
     a.noalias() += block.transpose() * w.segment(i, rows).asDiagonal() * block;
   }
+  // The refinement's prior is a row of its own (least_squares.h): in A, not
+  // in B, since its centre is not noise; the curve's uncertainty it stands
+  // for is propagated as the material's components below, which the fit
+  // with the rate scale free absorbs as far as the radiographs allow.
+  if (fit.prior) a(fit.prior->column, fit.prior->column) += fit.prior->lambda * fit.prior->lambda;
   // Directions no radiograph can see are taken out of A (and below of B
   // and of every influence's shift), so that the pseudo-inverse drops them
   // exactly and the dimensions along them are reported as not identifiable.
@@ -556,6 +561,30 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       combination.expanded = budget.coverage_factor * u;
       budget.combinations.push_back(std::move(combination));
     }
+  if (fit.prior) {
+    const Eigen::Index c = fit.prior->column;
+    MaterialRefinementResult refined;
+    refined.rate_scale = theta[static_cast<size_t>(model.rateScaleIndex())];
+    refined.prior_standard_uncertainty = model.rateScalePrior();
+    // e corrects the file's curve: a move of that curve (the material's own
+    // components) moves e by as much the other way and leaves the refined
+    // curve where it was, so e's uncertainty as the radiographs determine it
+    // is the statistical part and the other influences'.
+    double variance = statistical(c, c);
+    for (const Influence& f : influences)
+      if (!f.name.starts_with("material")) variance += f.delta_theta(c) * f.delta_theta(c);
+    refined.standard_uncertainty = std::sqrt(std::max(0.0, variance));
+    const ExponentialSum used = model.materialOf(theta);
+    const ExponentialSum& stated = model.material();
+    constexpr int kPaths = 400;
+    for (int k = 0; k <= kPaths; ++k) {
+      const double x = model.partSizeMm() * k / kPaths;
+      const double change = used.transmission(x) - stated.transmission(x);
+      if (std::abs(change) > std::abs(refined.transmission_change))
+        refined.transmission_change = change, refined.at_path_mm = x;
+    }
+    budget.refinement = refined;
+  }
   if (!null.empty())
     budget.notes.push_back(
         fmt::format("{} direction(s) of the parameters are not determined by the "

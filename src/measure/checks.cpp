@@ -10,6 +10,10 @@ namespace xgauge {
 
 namespace {
 
+// A refined rate scale beyond this many of its prior's standard
+// uncertainties is warned about (a 3-sigma event of a correct calibration).
+constexpr double kRefinementWarnPriors = 3.0;
+
 double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
   std::nth_element(v.begin(), v.begin() + static_cast<ptrdiff_t>(v.size() / 2), v.end());
@@ -63,7 +67,7 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
   SelfCheck check;
   // Parameters at a bound.
   const ParameterLayout& layout = model.parameters();
-  for (int i : model.jointIndices()) {
+  for (int i : model.leastSquaresIndices()) {
     const auto k = static_cast<size_t>(i);
     const double lo = model.lower()[k], hi = model.upper()[k], range = hi - lo;
     if (!(range > 0.0)) continue;
@@ -79,6 +83,19 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
           fmt::format("{} = {:.4f} is at its upper bound {:.4f}: the true "
                       "value may lie above it; widen the bounds",
                       name, theta[k], hi));
+  }
+
+  // A refinement that moves the curve far beyond what its calibration
+  // stated: the calibration does not hold here (another set-up, another
+  // alloy), or the part's model misses something the curve now hides.
+  if (const int i = model.rateScaleIndex(); i >= 0) {
+    const double e = theta[static_cast<size_t>(i)], u = model.rateScalePrior();
+    if (std::abs(e) > kRefinementWarnPriors * u)
+      check.warnings.push_back(fmt::format(
+          "the material refined in situ: its rates moved by {:+.2f} %, {:.1f} times the "
+          "calibration's stated uncertainty ({:.2f} %): the calibration may not hold for this "
+          "set-up or material, or the part differs from its model where the curve now hides it",
+          100.0 * e, std::abs(e) / u, 100.0 * u));
   }
 
   // Per radiograph: the residual against the noise, and residual regions.

@@ -244,6 +244,23 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
   const std::string loss = root.get<std::string>("loss", "l1");
   if (loss != "l1" && loss != "l2") root.at("loss").fail("expected \"l1\" or \"l2\"");
   job.loss = lossKindFromName(loss);
+  if (auto refine = root.find("refine_material")) {
+    const std::string what = refine->string();
+    if (what == "rate_scale")
+      job.refine_material = MaterialRefinement::kRateScale;
+    else if (what != "none")
+      refine->fail(fmt::format("unknown refinement '{}' (known: none, rate_scale)", what));
+    // Along the beam of translated shots the curve and the part's depth
+    // trade; only a view from another direction puts an edge across it.
+    int own_poses = 0;
+    for (const RadiographSpec& spec : job.radiographs)
+      own_poses += spec.pattern == Acquisition::kFree || spec.pattern == Acquisition::kRotated;
+    if (job.refine_material != MaterialRefinement::kNone && own_poses < 2)
+      refine->fail(
+          "refining the material needs a radiograph that sees the part from another direction "
+          "(a \"rotated\" one, or a second \"free\" one): translated shots alone cannot tell "
+          "the curve from the part's depth");
+  }
   if (auto seed = root.find("seed"))
     job.seed = static_cast<uint64_t>(seed->integer(0, int64_t{1} << 53));
   return job;

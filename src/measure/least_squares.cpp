@@ -189,6 +189,27 @@ class ImageResiduals final : public ceres::CostFunction {
   mutable int evaluations_ = 0, with_derivatives_ = 0;
 };
 
+// The rate scale's prior (RateScalePrior) as a residual block of its own
+// over the same parameters.
+class PriorResidual final : public ceres::CostFunction {
+ public:
+  PriorResidual(RateScalePrior prior, int parameters) : prior_(prior), n_(parameters) {
+    set_num_residuals(1);
+    mutable_parameter_block_sizes()->push_back(parameters);
+  }
+  bool Evaluate(double const* const* parameters, double* residuals,
+                double** jacobians) const override {
+    residuals[0] = prior_.lambda * parameters[0][prior_.column];
+    if (jacobians != nullptr && jacobians[0] != nullptr)
+      for (int k = 0; k < n_; ++k) jacobians[0][k] = k == prior_.column ? prior_.lambda : 0.0;
+    return true;
+  }
+
+ private:
+  RateScalePrior prior_;
+  int n_;
+};
+
 }  // namespace
 
 Eigen::VectorXd LinearizedFit::weights() const {
@@ -213,7 +234,7 @@ std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<con
     segments.push_back({r, roi, first, std::numeric_limits<double>::infinity()});
     first += static_cast<size_t>(roi.area());
   }
-  if (!robust) return segments;
+  if (!robust && model.rateScaleIndex() < 0) return segments;
   for (ResidualSegment& segment : segments) {
     std::vector<double> r;
     const int only[] = {segment.radiograph};
@@ -226,9 +247,27 @@ std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<con
     // rather than a degenerate L1 that weighs every pixel by 1 / |r|.
     const double unscale = std::sqrt(static_cast<double>(segment.roi.area()));
     const double sigma = std::max(1.4826 * r[r.size() / 2] * unscale, kNoiseFloor);
-    segment.threshold = 1.345 * sigma / unscale;
+    segment.scale = sigma / unscale;
+    if (robust) segment.threshold = 1.345 * segment.scale;
   }
   return segments;
+}
+
+std::optional<RateScalePrior> rateScalePrior(const ForwardModel& model,
+                                             const std::vector<int>& indices,
+                                             const std::vector<ResidualSegment>& segments) {
+  const auto it = std::find(indices.begin(), indices.end(), model.rateScaleIndex());
+  if (model.rateScaleIndex() < 0 || it == indices.end()) return std::nullopt;
+  double sum = 0.0;
+  for (const ResidualSegment& segment : segments) {
+    // A radiograph whose residuals could not be taken: the noise floor.
+    const double scale = segment.scale > 0.0
+                             ? segment.scale
+                             : kNoiseFloor / std::sqrt(static_cast<double>(segment.roi.area()));
+    sum += scale * scale;
+  }
+  const double tau = std::sqrt(sum / static_cast<double>(std::max<size_t>(1, segments.size())));
+  return RateScalePrior{static_cast<int>(it - indices.begin()), tau / model.rateScalePrior()};
 }
 
 bool linearize(ForwardModel& model, std::span<const double> theta, const std::vector<int>& indices,
@@ -236,6 +275,7 @@ bool linearize(ForwardModel& model, std::span<const double> theta, const std::ve
   std::vector<int> radiographs;
   for (const ResidualSegment& s : segments) radiographs.push_back(s.radiograph);
   out.indices = indices;
+  out.prior = rateScalePrior(model, indices, segments);
   out.segments = std::move(segments);
   out.level = level, out.samples = samples;
   std::vector<double> r, shifted_r;
@@ -285,8 +325,9 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
   }
   const std::vector<ResidualSegment> segments =
       residualSegments(model, theta, radiographs, level, samples, robust);
-  report.evaluations = 1 + (robust ? static_cast<int>(radiographs.size()) : 0);
-  report.loss_before = huberLoss(r, segments);
+  const std::optional<RateScalePrior> prior = rateScalePrior(model, indices, segments);
+  report.evaluations =
+      1 + (robust || model.rateScaleIndex() >= 0 ? static_cast<int>(radiographs.size()) : 0);
 
   const size_t n = indices.size();
   std::vector<double> x(n);
@@ -294,6 +335,9 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
     const auto i = static_cast<size_t>(indices[k]);
     x[k] = std::clamp(theta[i], model.lower()[i], model.upper()[i]);
   }
+  const double prior_loss =
+      prior ? std::pow(prior->lambda * x[static_cast<size_t>(prior->column)], 2) : 0.0;
+  report.loss_before = huberLoss(r, segments) + prior_loss;
   std::optional<ProgressBar> progress;
   if (!quiet)
     progress.emplace(report.name, jacobian == JacobianKind::kRenderDerivatives
@@ -305,6 +349,11 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
   problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
   problem.AddResidualBlock(&cost, nullptr, x.data());
+  std::optional<PriorResidual> prior_cost;
+  if (prior) {
+    prior_cost.emplace(*prior, static_cast<int>(n));
+    problem.AddResidualBlock(&*prior_cost, nullptr, x.data());
+  }
   for (size_t k = 0; k < n; ++k) {
     const auto i = static_cast<size_t>(indices[k]);
     problem.SetParameterLowerBound(x.data(), static_cast<int>(k), model.lower()[i]);

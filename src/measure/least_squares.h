@@ -9,6 +9,7 @@
 
 #include <Eigen/Dense>
 
+#include <optional>
 #include <vector>
 
 namespace xgauge {
@@ -22,7 +23,28 @@ struct ResidualSegment {
   PixelRect roi;  // pixels of the level, in the residual vector's order (rows)
   size_t first = 0;
   double threshold = 0.0;
+  // The residuals' robust scale at the start (1.4826 median |r|, in
+  // residual units, at least kNoiseFloor unscaled); 0 where not estimated.
+  double scale = 0.0;
 };
+
+// The prior of the material's in-situ rate scale (ForwardModel::
+// rateScaleIndex) as one more residual, lambda * e: with every radiograph's
+// residuals scaled by 1 / sqrt(its pixels), a pixel's squared residual
+// weighs sigma^2 / pixels of its likelihood, so lambda = tau / u with tau^2
+// the mean over the radiographs of scale^2 and u the prior's standard
+// uncertainty. (The pixels are taken as independent here; their correlation
+// makes the data count for less than this, which the budget's sandwich
+// accounts for and the fit does not need to.)
+struct RateScalePrior {
+  int column = -1;  // of the rate scale among a stage's parameters
+  double lambda = 0.0;
+};
+// The prior for a stage over `indices`; nullopt when the rate scale is not
+// among them.
+std::optional<RateScalePrior> rateScalePrior(const ForwardModel& model,
+                                             const std::vector<int>& indices,
+                                             const std::vector<ResidualSegment>& segments);
 
 // The residuals and their Jacobian by central differences, at one point.
 struct LinearizedFit {
@@ -32,6 +54,7 @@ struct LinearizedFit {
   Eigen::VectorXd residuals;  // simulated - measured, scaled as ForwardModel::residuals
   Eigen::MatrixXd jacobian;   // d residual / d theta[indices[k]]
   std::vector<double> steps;  // the step of each column's difference
+  std::optional<RateScalePrior> prior;  // a row lambda e_column besides the pixels'
   // Huber's psi(r) / r per residual: 1 inside the threshold, threshold / |r| beyond.
   Eigen::VectorXd weights() const;
 };
@@ -41,7 +64,9 @@ struct LinearizedFit {
 // residuals at theta (at least 1e-4 in intensity, so that a noise-free
 // simulation is fitted by plain least squares), the usual 95 %-efficient
 // choice for Gaussian noise (Huber 1981), which keeps a dust speck or a
-// defect from pulling the fit.
+// defect from pulling the fit. The robust sigma is the segment's scale,
+// estimated when `robust` or when the model refines the material (its
+// prior is weighed by it).
 std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<const double> theta,
                                               std::span<const int> radiographs, int level,
                                               int samples, bool robust);

@@ -183,7 +183,10 @@ void fitPose(ForwardModel& model, std::vector<double>& theta, Runner& runner,
 // Every free parameter of every radiograph together, coarse to fine.
 void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
                 const Schedule& schedule, const MeasureOptions& options) {
+  // The derivative-free stages leave the material's refinement (it has a
+  // prior only a least-squares stage weighs) where it starts.
   const std::vector<int> all = model.jointIndices();
+  const std::vector<int> least_squares = model.leastSquaresIndices();
   std::vector<int> every_radiograph;
   for (int r = 0; r < model.radiographCount(); ++r) every_radiograph.push_back(r);
   for (const JointStage& stage : schedule.joint) {
@@ -195,7 +198,8 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
                           model.radiograph(0).levels[static_cast<size_t>(level)].width())
             : std::string("joint");
     if (stage.gauss_newton) {
-      runner.report(solveLeastSquares(model, theta, all, every_radiograph, level, stage.samples,
+      runner.report(solveLeastSquares(model, theta, least_squares, every_radiograph, level,
+                                      stage.samples,
                                       stage.evaluations,
                                       model.job().loss == LossKind::kMeanAbsolute,
                                       JacobianKind::kRenderDerivatives, false, name));
@@ -229,7 +233,8 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     // From here on (this stage, the budget and the self-checks) the pixels
     // on edges are sampled finer (schedule.h, LeastSquaresStage::edge_samples).
     model.setEdgeSamples(ls.edge_samples);
-    runner.report(solveLeastSquares(model, theta, all, every_radiograph, ls_level, ls.samples,
+    runner.report(solveLeastSquares(model, theta, least_squares, every_radiograph, ls_level,
+                                    ls.samples,
                                     ls.max_iterations * (line ? kLineIterationFactor : 1),
                                     model.job().loss == LossKind::kMeanAbsolute,
                                     ls.render_derivatives ? JacobianKind::kRenderDerivatives
@@ -247,7 +252,7 @@ void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementRe
   for (int r = 0; r < model.radiographCount(); ++r) every_radiograph.push_back(r);
   const bool robust = model.job().loss == LossKind::kMeanAbsolute;
   LinearizedFit fit;
-  if (!linearize(model, theta, model.jointIndices(),
+  if (!linearize(model, theta, model.leastSquaresIndices(),
                  residualSegments(model, theta, every_radiograph, level, ls.samples, robust), level,
                  ls.samples, fit)) {
     result.check.warnings.push_back(

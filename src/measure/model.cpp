@@ -64,7 +64,7 @@ ForwardModel::ForwardModel(const MeasurementInputs& inputs)
       }()) {}
 
 ForwardModel::ForwardModel(const MeasurementInputs& inputs, const ExponentialSum& material)
-    : inputs_(inputs), part_(*inputs.part), material_(material) {
+    : inputs_(inputs), part_(*inputs.part), base_material_(material), material_(material) {
   XG_CHECK(
       inputs.radiographs.size() == inputs.job.radiographs.size() && !inputs.radiographs.empty(),
       "the inputs hold {} prepared radiographs for {} in the job", inputs.radiographs.size(),
@@ -145,11 +145,29 @@ ForwardModel::ForwardModel(const MeasurementInputs& inputs, const ExponentialSum
         break;
     }
   }
+  if (job.refine_material == MaterialRefinement::kRateScale) addRateScale();
 }
 
 void ForwardModel::setMaterial(const ExponentialSum& material) {
+  base_material_ = material;
+  useMaterial(material);
+}
+
+void ForwardModel::useMaterial(const ExponentialSum& material) {
   material_ = material;
   transmission_ = TransmissionTable::forMaterial(material, max_path_mm_);
+}
+
+void ForwardModel::addRateScale() {
+  // The prior is the job's material's, the same for a model built on one of
+  // its moved curves (the budget's), so that every model of one measurement
+  // weighs the refinement alike.
+  const ExponentialSum& stated = inputs_.material ? *inputs_.material : base_material_;
+  rate_scale_prior_ = stated.rateScaleFor(stated.transmissionUncertainty(), part_size_mm_);
+  XG_CHECK(rate_scale_prior_ > 0.0, "a rate scale refinement without a prior");
+  const double reach = std::min(kRateScaleReach * rate_scale_prior_, 0.5);
+  rate_scale_index_ = layout_.add("material_refinement", ParameterKind::kMaterial, {"rate_scale"},
+                                  {-reach}, {reach}, {0.0});
 }
 
 void ForwardModel::freeMaterial(const ExponentialSum& material, std::vector<double>& theta,
@@ -180,6 +198,8 @@ void ForwardModel::freeMaterial(const ExponentialSum& material, std::vector<doub
 }
 
 ExponentialSum ForwardModel::materialOf(std::span<const double> theta) const {
+  if (rate_scale_index_ >= 0)
+    return base_material_.withScaledRates(theta[static_cast<size_t>(rate_scale_index_)]);
   if (material_terms_ == 0) return material_;
   const int m = material_terms_;
   const double* u = theta.data() + layout_.block("material").front();
@@ -198,14 +218,14 @@ ExponentialSum ForwardModel::materialOf(std::span<const double> theta) const {
 }
 
 void ForwardModel::useMaterialOf(std::span<const double> theta) {
-  if (material_terms_ == 0) return;
+  if (material_terms_ == 0 && rate_scale_index_ < 0) return;
   const ExponentialSum wanted = materialOf(theta);
   const auto& now = material_.terms();
   bool same = now.size() == wanted.terms().size();
   for (size_t k = 0; same && k < now.size(); ++k)
     same = now[k].weight == wanted.terms()[k].weight &&
            now[k].mu_per_mm == wanted.terms()[k].mu_per_mm;
-  if (!same) setMaterial(wanted);
+  if (!same) useMaterial(wanted);
 }
 
 int ForwardModel::levelForWidth(int min_width) const {
@@ -236,6 +256,12 @@ std::vector<int> ForwardModel::jointIndices() const {
   for (int r = 0; r < radiographCount(); ++r)
     for (int i : poseIndices(r)) all.push_back(i);
   for (int i : materialIndices()) all.push_back(i);
+  return all;
+}
+
+std::vector<int> ForwardModel::leastSquaresIndices() const {
+  std::vector<int> all = jointIndices();
+  if (rate_scale_index_ >= 0) all.push_back(rate_scale_index_);
   return all;
 }
 

@@ -86,6 +86,15 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
       {"dimensions", budget},
       {"combinations", combinations},
       {"notes", result.uncertainty.notes}};
+  nlohmann::json refinement = nullptr;
+  if (const auto& refined = result.uncertainty.refinement)
+    refinement = {{"model", "rate_scale"},
+                  {"rate_scale", refined->rate_scale},
+                  {"standard_uncertainty", refined->standard_uncertainty},
+                  {"prior_standard_uncertainty", refined->prior_standard_uncertainty},
+                  {"transmission_change", refined->transmission_change},
+                  {"at_path_mm", refined->at_path_mm},
+                  {"curve", model.materialOf(result.theta).toJson()}};
   nlohmann::json regions = nlohmann::json::array();
   for (const ResidualRegion& r : result.check.regions) {
     nlohmann::json item = {{"radiograph", r.radiograph},
@@ -156,6 +165,7 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
           {"decision_rule",
            toleranced ? nlohmann::json(std::string(kDecisionRule)) : nlohmann::json(nullptr)},
           {"uncertainty", uncertainty},
+          {"material_refinement", refinement},
           {"warnings", result.check.warnings},
           {"residual_regions", regions},
           {"fit_checks", fits},

@@ -70,6 +70,13 @@ namespace xgauge {
 
 enum class Acquisition { kFree, kTranslated, kRotated, kKnown };
 
+// What of the material's curve the final fit may correct (job
+// "refine_material"): nothing, or a common scale of its rates with the
+// calibration's uncertainty as a prior (docs/method.md, "The curve refined
+// in situ"). Needs a view from another direction: a rotated radiograph or a
+// second free one.
+enum class MaterialRefinement { kNone, kRateScale };
+
 // The standard uncertainty of a translated radiograph's distance when the
 // job states none: a linear stage's positioning, 5 um.
 inline constexpr double kDefaultTranslationUncertaintyMm = 0.005;
@@ -107,6 +114,7 @@ struct MeasurementJob {
   std::map<std::string, Tolerance> tolerances;
   ScheduleKind schedule = ScheduleKind::kDefault;
   LossKind loss = LossKind::kMeanAbsolute;
+  MaterialRefinement refine_material = MaterialRefinement::kNone;
   uint64_t seed = 1;
 
   // Reads a parsed job file whose part model `part` the caller has loaded

@@ -14,6 +14,11 @@
 //                  reference's moved by distance_mm * d, so the known distance
 //                  holds exactly
 //   known          none
+// then, when the job refines the material in situ (job "refine_material":
+// "rate_scale"), "material_refinement/rate_scale": the relative change e of
+// every rate (the curve used is the material's withScaledRates(e)), free
+// only in the least-squares stages, which weigh it by a prior of standard
+// uncertainty rateScalePrior() about 0;
 // and, for a calibration that frees the material (freeMaterial), last, the
 // material of M terms: "material/fraction<k>", M - 1 stick-breaking fractions
 // u_k in [0, 1] (a_1 = u_1, a_k = u_k (1 - a_1 - ... - a_{k-1}), the last
@@ -68,8 +73,9 @@ class ForwardModel {
   explicit ForwardModel(const MeasurementInputs& inputs);
   ForwardModel(const MeasurementInputs& inputs, const ExponentialSum& material);
 
-  // The material the radiographs are simulated with; a calibration changes it.
-  const ExponentialSum& material() const { return material_; }
+  // The material the radiographs are simulated with (before a refinement's
+  // rate scale); a calibration changes it.
+  const ExponentialSum& material() const { return base_material_; }
   void setMaterial(const ExponentialSum& material);
 
   const MeasurementInputs& inputs() const { return inputs_; }
@@ -108,6 +114,15 @@ class ForwardModel {
   void freeMaterial(const ExponentialSum& material, std::vector<double>& theta,
                     double rate_floor_per_mm = 0.0);
   std::vector<int> materialIndices() const { return layout_.block("material"); }
+  // The refinement's rate scale, -1 when the job does not refine the
+  // material; its prior's standard uncertainty (relative), the scale that
+  // moves the curve by the material's stated transmission uncertainty at
+  // the path where a scale moves it most (ExponentialSum::rateScaleFor).
+  int rateScaleIndex() const { return rate_scale_index_; }
+  double rateScalePrior() const { return rate_scale_prior_; }
+  // The parameters of a least-squares stage: jointIndices() and the rate
+  // scale when the material is refined.
+  std::vector<int> leastSquaresIndices() const;
   // The material a parameter vector stands for (the fixed one when the
   // material is not free).
   ExponentialSum materialOf(std::span<const double> theta) const;
@@ -195,11 +210,18 @@ class ForwardModel {
       const std::function<void(const PreparedRadiograph&, const PixelRect&, const Image&)>& use);
   // Rebuilds the table when theta's material differs from the current one.
   void useMaterialOf(std::span<const double> theta);
+  void useMaterial(const ExponentialSum& material);  // keeps base_material_
+  void addRateScale();
+  // The rate scale's bounds, in prior standard uncertainties (at most +-0.5).
+  static constexpr double kRateScaleReach = 6.0;
 
   const MeasurementInputs& inputs_;
   PartModel part_;  // this model's own copy: evaluating one is not thread-safe
-  ExponentialSum material_;
+  ExponentialSum base_material_;  // as given (setMaterial)
+  ExponentialSum material_;       // as rendered now: the base, or theta's
   int material_terms_ = 0;  // > 0 when the material is free
+  int rate_scale_index_ = -1;
+  double rate_scale_prior_ = 0.0;
   double max_path_mm_ = 0.0;
   TransmissionTable transmission_;
   ParameterLayout layout_;

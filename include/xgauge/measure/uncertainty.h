@@ -26,6 +26,7 @@
 // own U (e.g. the sum of two edges that move together with the part).
 #pragma once
 
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -60,12 +61,29 @@ struct MeasurableCombination {
   double expanded = 0.0;  // U, k = 2
 };
 
+// The material's curve refined in situ (job "refine_material"): the rate
+// scale e the radiographs chose (the curve used is the material's with every
+// rate times 1 + e), the prior it was weighed by, its standard uncertainty as
+// the radiographs determine it (the budget's statistical part and every
+// influence but the material's own, which move the curve e corrects and e
+// with it, leaving the refined curve in place), and what it does
+// to the curve: the largest change of the transmission over the part's
+// paths, signed, and the path where it happens.
+struct MaterialRefinementResult {
+  double rate_scale = 0.0;
+  double prior_standard_uncertainty = 0.0;
+  double standard_uncertainty = 0.0;
+  double transmission_change = 0.0;
+  double at_path_mm = 0.0;
+};
+
 struct UncertaintyBudget {
   double coverage_factor = 2.0;
   int level = 0;                                 // pyramid level of the linearisation
   double pixels = 0.0;                           // residuals used
   std::vector<DimensionUncertainty> dimensions;  // the free dimensions, model order
   std::vector<MeasurableCombination> combinations;
+  std::optional<MaterialRefinementResult> refinement;
   std::vector<std::string> notes;  // why a component is missing, and the like
 };
 

@@ -426,6 +426,15 @@ TEST_F(Uncertainty, TheMaterialRefinedInSituTakesTheCurveErrorOffTheDepth) {
     EXPECT_NE(std::string(error.what()).find("/refine_material"), std::string::npos) << error.what();
     EXPECT_NE(std::string(error.what()).find("another direction"), std::string::npos) << error.what();
   }
+  Scene unstated = scene;
+  unstated.material_uncertainty = 0.0;
+  try {
+    measureScene(unstated);
+    ADD_FAILURE() << "a refinement without the material's uncertainty was accepted";
+  } catch (const Error& error) {
+    EXPECT_NE(std::string(error.what()).find("material.json states none"), std::string::npos)
+        << error.what();
+  }
   Scene misspelt = scene;
   misspelt.refine_material = "rate-scale";
   try {

@@ -119,6 +119,9 @@ StudyRun readRunResult(const fs::path& file, const std::string& id, const Datase
         run.combinations[c.get<std::string>("expression")] = {
             c.at("value").number() - truth_value, c.at("expanded_uncertainty").number()};
       }
+  if (const auto refined = root.find("material_refinement"); refined && refined->isObject())
+    run.rate_scale = {refined->at("rate_scale").number(),
+                      refined->at("standard_uncertainty").number(0.0, 1e6)};
   for (const auto& name : free_dimensions)
     if (!run.error_mm.count(name)) dims.fail(fmt::format("no free dimension '{}'", name));
   return run;
@@ -545,6 +548,10 @@ StudySummary runStudy(const StudyOptions& options) {
                         {"error_mm", run.error_mm},
                         {"expanded_uncertainty_mm", run.expanded_mm},
                         {"combinations", combination_errors}});
+    if (run.rate_scale)
+      all_runs.back()["material_refinement"] = {
+          {"rate_scale", run.rate_scale->first},
+          {"standard_uncertainty", run.rate_scale->second}};
   }
   const nlohmann::json study_json = {{"dataset", options.dataset.string()},
                                       {"combinations", options.combinations},

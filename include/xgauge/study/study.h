@@ -47,6 +47,9 @@ struct StudyRun {
   // reported (expression -> error, U).
   std::map<std::string, double> expanded_mm;
   std::map<std::string, std::pair<double, double>> combinations;
+  // With the material refined in situ (job "refine_material"): the rate
+  // scale the run found and its standard uncertainty.
+  std::optional<std::pair<double, double>> rate_scale;
   double seconds = 0.0;
 };
 

@@ -129,6 +129,9 @@ struct Influence {
   std::string name, quantity, unit;
   double u = 0.0;               // standard uncertainty, in unit
   Eigen::VectorXd delta_theta;  // the parameters' shift for q + u
+  // When the influence scales the rates of the file's curve (the material's
+  // rest): by how much, relative.
+  double curve_scale = 0.0;
 };
 
 }  // namespace
@@ -224,10 +227,12 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   const bool material_free = !model.materialIndices().empty();
   auto solveFrom = [&](ForwardModel& with, std::vector<double>& solved) {
     solved.assign(theta.begin(), theta.end());
-    const StageReport report =
-        solveLeastSquares(with, solved, fit.indices, radiographs, level, samples,
-                          kResolveIterations, robust, JacobianKind::kForwardDifferences,
-                          /*quiet=*/true);
+    // Every re-solve weighs the refinement's prior as the fit did, so that
+    // a moved model's own residual scale does not move e.
+    const StageReport report = solveLeastSquares(
+        with, solved, fit.indices, radiographs, level, samples, kResolveIterations, robust,
+        JacobianKind::kForwardDifferences, /*quiet=*/true, "joint",
+        fit.prior ? std::optional<double>(fit.prior->lambda) : std::nullopt);
     spdlog::debug("uncertainty: re-solve in {} evaluations, {:.2f} s ({})", report.evaluations,
                   report.seconds, report.termination);
     return report.termination != "start point invalid";
@@ -322,7 +327,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
           {"material",
            fmt::format("transmission curve, u = {:.2g}{}", u,
                        moves.empty() ? "" : " besides the calibration's inputs"),
-           "transmission", u, {}},
+           "transmission", u, {}, scale},
           Propagation::kLinearised);
     }
   }
@@ -566,13 +571,21 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
     MaterialRefinementResult refined;
     refined.rate_scale = theta[static_cast<size_t>(model.rateScaleIndex())];
     refined.prior_standard_uncertainty = model.rateScalePrior();
-    // e corrects the file's curve: a move of that curve (the material's own
-    // components) moves e by as much the other way and leaves the refined
-    // curve where it was, so e's uncertainty as the radiographs determine it
-    // is the statistical part and the other influences'.
+    // e corrects the file's curve: a scale s of that curve moves e by about
+    // -s and the refined curve, (1 + s)(1 + e), by s + de, which is what the
+    // prior holds back. So e's uncertainty as the radiographs determine it
+    // (that of the refined curve's scale) is the statistical part, the
+    // material's rest as s + de, and the other influences. The calibration
+    // inputs' curve moves are not scales and are left out of it.
     double variance = statistical(c, c);
-    for (const Influence& f : influences)
-      if (!f.name.starts_with("material")) variance += f.delta_theta(c) * f.delta_theta(c);
+    for (const Influence& f : influences) {
+      if (f.curve_scale != 0.0) {
+        const double refined_scale = f.curve_scale + f.delta_theta(c);
+        variance += refined_scale * refined_scale;
+      } else if (!f.name.starts_with("material")) {
+        variance += f.delta_theta(c) * f.delta_theta(c);
+      }
+    }
     refined.standard_uncertainty = std::sqrt(std::max(0.0, variance));
     const ExponentialSum used = model.materialOf(theta);
     const ExponentialSum& stated = model.material();

@@ -170,14 +170,6 @@ MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
     }
     material.finish();
   }
-  if (in.job.refine_material != MaterialRefinement::kNone &&
-      !(in.material && in.material->transmissionUncertainty() > 0.0))
-    fail("{}: /refine_material: the refinement is weighed by the material's stated uncertainty, "
-         "and {}",
-         job_file.string(),
-         in.material ? fmt::format("{} states none (uncertainty.transmission is 0)",
-                                   in.job.material_file.string())
-                     : std::string("the job names no material"));
   in.radiographs = loadRadiographs(in.job, in.machine, in.sha256);
   return in;
 }

@@ -255,6 +255,10 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
     int own_poses = 0;
     for (const RadiographSpec& spec : job.radiographs)
       own_poses += spec.pattern == Acquisition::kFree || spec.pattern == Acquisition::kRotated;
+    if (job.refine_material != MaterialRefinement::kNone && job.schedule == ScheduleKind::kThesis)
+      refine->fail(
+          "the thesis schedule has no least-squares stage to refine the material in (use "
+          "\"default\" or \"gauss-newton\")");
     if (job.refine_material != MaterialRefinement::kNone && own_poses < 2)
       refine->fail(
           "refining the material needs a radiograph that sees the part from another direction "

@@ -18,6 +18,13 @@ namespace {
 
 constexpr double kStep = 2e-3;  // mm or deg: forward differences (least_squares.h)
 
+// A material parameter's difference step: kStep, or a quarter of its range
+// where that is narrower (a refinement's rate scale under a tight prior).
+double materialStep(const ForwardModel& model, int index) {
+  const auto i = static_cast<size_t>(index);
+  return std::min(kStep, 0.25 * (model.upper()[i] - model.lower()[i]));
+}
+
 // The linearisation's steps move the part's projected edges by about this
 // many pixels of the level (least_squares.h).
 constexpr double kLinearStepPx = 0.2;
@@ -58,7 +65,7 @@ std::vector<double> linearSteps(const ForwardModel& model, std::span<const doubl
         break;
       }
       case ParameterKind::kMaterial:
-        steps.push_back(2e-3);
+        steps.push_back(materialStep(model, i));
         break;
     }
   }
@@ -147,7 +154,10 @@ class ImageResiduals final : public ceres::CostFunction {
     for (size_t k = 0; k < n; ++k) {
       const auto i = static_cast<size_t>(indices_[k]);
       std::vector<double> shifted = at;
-      shifted[i] = at[i] + kStep <= model_.upper()[i] ? at[i] + kStep : at[i] - kStep;
+      const double h = model_.kind(indices_[k]) == ParameterKind::kMaterial
+                           ? materialStep(model_, indices_[k])
+                           : kStep;
+      shifted[i] = at[i] + h <= model_.upper()[i] ? at[i] + h : at[i] - h;
       const double step = shifted[i] - at[i];
       if (!render(shifted, shifted_r)) return false;
       // The derivative of the transformed residual: its slope at r times
@@ -311,7 +321,8 @@ bool linearize(ForwardModel& model, std::span<const double> theta, const std::ve
 StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
                               const std::vector<int>& indices, const std::vector<int>& radiographs,
                               int level, int samples, int max_iterations, bool robust,
-                              JacobianKind jacobian, bool quiet, std::string_view label) {
+                              JacobianKind jacobian, bool quiet, std::string_view label,
+                              std::optional<double> prior_lambda) {
   const auto start = std::chrono::steady_clock::now();
   StageReport report;
   report.name = fmt::format("{}, {}", label, robust ? "robust least squares" : "least squares");
@@ -325,7 +336,8 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
   }
   const std::vector<ResidualSegment> segments =
       residualSegments(model, theta, radiographs, level, samples, robust);
-  const std::optional<RateScalePrior> prior = rateScalePrior(model, indices, segments);
+  std::optional<RateScalePrior> prior = rateScalePrior(model, indices, segments);
+  if (prior && prior_lambda) prior->lambda = *prior_lambda;
   report.evaluations =
       1 + (robust || model.rateScaleIndex() >= 0 ? static_cast<int>(radiographs.size()) : 0);
 

@@ -105,11 +105,14 @@ enum class JacobianKind { kForwardDifferences, kRenderDerivatives };
 // beyond the threshold a, whose squared sum is Huber's loss and whose
 // Gauss-Newton step is that of the reweighted least squares.
 // `quiet`: no progress bar and no log line (a re-solve inside the budget);
-// `label` starts the stage's name.
+// `label` starts the stage's name; `prior_lambda`, when given, weighs the
+// refinement's prior instead of the residuals' own scale (the budget's
+// re-solves take the fit's).
 StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
                               const std::vector<int>& indices, const std::vector<int>& radiographs,
                               int level, int samples, int max_iterations, bool robust,
                               JacobianKind jacobian, bool quiet = false,
-                              std::string_view label = "joint");
+                              std::string_view label = "joint",
+                              std::optional<double> prior_lambda = std::nullopt);
 
 }  // namespace xgauge

@@ -162,9 +162,17 @@ void ForwardModel::addRateScale() {
   // The prior is the job's material's, the same for a model built on one of
   // its moved curves (the budget's), so that every model of one measurement
   // weighs the refinement alike.
-  const ExponentialSum& stated = inputs_.material ? *inputs_.material : base_material_;
+  // Checked here, where every path to a measurement (a job, a study's run,
+  // the budget's moved models) passes.
+  const MeasurementJob& job = inputs_.job;
+  if (!inputs_.material)
+    fail("{}: /refine_material: the job names no material to refine", job.file.string());
+  const ExponentialSum& stated = *inputs_.material;
   rate_scale_prior_ = stated.rateScaleFor(stated.transmissionUncertainty(), part_size_mm_);
-  XG_CHECK(rate_scale_prior_ > 0.0, "a rate scale refinement without a prior");
+  if (!(rate_scale_prior_ > 0.0))
+    fail("{}: /refine_material: the refinement is weighed by the material's stated uncertainty, "
+         "and {} states none (uncertainty.transmission is 0)",
+         job.file.string(), job.material_file.string());
   const double reach = std::min(kRateScaleReach * rate_scale_prior_, 0.5);
   rate_scale_index_ = layout_.add("material_refinement", ParameterKind::kMaterial, {"rate_scale"},
                                   {-reach}, {reach}, {0.0});

@@ -364,19 +364,21 @@ TEST_F(Uncertainty, AnInfluenceMovesTheResultAsItsReSolveSays) {
 }
 
 // The material's curve refined in situ (job "refine_material": "rate_scale"):
-// radiographs taken with every rate 2 % higher than the material file's
-// (about 3 times its stated uncertainty at the worst path), the pair plus a
-// shot turned by 40 degrees. Without the refinement the size along the beam
-// (size_z) takes the curve's error; with it, the edges of the turned shot
-// decide, the rate scale comes out within 3 of its standard uncertainties of
-// the lab's 2 %, every size moves at least three times closer to the truth,
-// and the material's component of size_z shrinks as much (the fit absorbs
-// the curve's scale). A refinement without a view from another direction,
-// or with an unknown name, is refused naming the key.
+// radiographs taken with every rate 0.65 % higher than the material file's
+// (about 2 of the prior's standard uncertainties, which the file's u = 0.001
+// gives), the pair plus a shot turned by 40 degrees. Without the refinement
+// the size along the beam (size_z) takes the curve's error; with it, the
+// edges of the turned shot decide, the rate scale comes out within 3 of its
+// standard uncertainties of the lab's, every size moves at least three times
+// closer to the truth, and the material's component of size_z shrinks as
+// much (the fit absorbs the curve's scale). With a prior 50 times tighter
+// the rate scale is held back, inside its bounds, and size_z keeps the
+// error. A refinement without a view from another direction, without the
+// material's uncertainty or with an unknown name is refused naming the key.
 TEST_F(Uncertainty, TheMaterialRefinedInSituTakesTheCurveErrorOffTheDepth) {
   Scene scene;
   scene.noise = 0.002;
-  scene.lab_rate_scale = 0.02;
+  scene.lab_rate_scale = 0.0065;
   scene.rotated = Pose::fromEulerDeg({-1.0, 65.0, 2.0}, {4.0, -2.0, 505.0});
   scene.bounds =
       R"({"rotation_deg": [[-5, 5], [15, 75], [-5, 5]], "centre_mm": [[-30, 30], [-30, 30], [470, 530]]})";
@@ -391,7 +393,7 @@ TEST_F(Uncertainty, TheMaterialRefinedInSituTakesTheCurveErrorOffTheDepth) {
   EXPECT_NEAR(e.prior_standard_uncertainty, prior, 1e-12);
   EXPECT_GT(e.standard_uncertainty, 0.0);
   EXPECT_LT(e.standard_uncertainty, 0.5 * prior);  // the radiographs, not the prior, decide
-  EXPECT_NEAR(e.rate_scale, 0.02, 3.0 * e.standard_uncertainty + 1e-4);
+  EXPECT_NEAR(e.rate_scale, scene.lab_rate_scale, 3.0 * e.standard_uncertainty + 1e-4);
   // The curve's change as reported: the refined curve against the file's.
   EXPECT_LT(e.transmission_change, 0.0);  // higher rates: a darker curve
   EXPECT_NEAR(e.transmission_change,
@@ -416,6 +418,31 @@ TEST_F(Uncertainty, TheMaterialRefinedInSituTakesTheCurveErrorOffTheDepth) {
   for (const std::string& w : refined.check.warnings)
     warned |= w.find("material refined in situ") != std::string::npos;
   EXPECT_EQ(warned, std::abs(e.rate_scale) > 3.0 * prior);
+
+  // A prior 50 times tighter (the material states u = 2e-5): the prior
+  // holds e back.
+  Scene tight = scene;
+  tight.material_uncertainty = 2e-5;
+  const MeasurementResult held = measureScene(tight);
+  ASSERT_TRUE(held.uncertainty.refinement.has_value());
+  const MaterialRefinementResult& h = *held.uncertainty.refinement;
+  EXPECT_NEAR(h.prior_standard_uncertainty, prior / 50.0, 1e-12);
+  // Towards the data, but held well inside its bounds (6 priors), where it
+  // would sit without the prior.
+  EXPECT_GT(h.rate_scale, h.prior_standard_uncertainty);
+  EXPECT_LT(h.rate_scale, 4.5 * h.prior_standard_uncertainty);
+  // The curve's error the prior holds back stays in the depth.
+  const auto errorOf = [&](const MeasurementResult& r, const std::string& name) {
+    for (const auto& d : r.dimensions)
+      if (d.name == name) return d.value - scene.truth.at(name);
+    ADD_FAILURE() << "no dimension " << name;
+    return 0.0;
+  };
+  EXPECT_GT(std::abs(errorOf(held, "size_z")), 3.0 * std::abs(errorOf(refined, "size_z")));
+  bool held_warned = false;
+  for (const std::string& w : held.check.warnings)
+    held_warned |= w.find("material refined in situ") != std::string::npos;
+  EXPECT_EQ(held_warned, std::abs(h.rate_scale) > 3.0 * h.prior_standard_uncertainty);
 
   // Each refused before any fit, with a message that names what is wrong.
   const auto expectRefused = [&](const Scene& bad, std::vector<std::string> fragments) {

@@ -94,7 +94,16 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                   {"prior_standard_uncertainty", refined->prior_standard_uncertainty},
                   {"transmission_change", refined->transmission_change},
                   {"at_path_mm", refined->at_path_mm},
-                  {"curve", model.materialOf(result.theta).toJson()}};
+                  {"curve", [&] {
+                     // The curve as used: the file's uncertainty and moves
+                     // belong to the unscaled curve.
+                     nlohmann::json curve = model.materialOf(result.theta).toJson();
+                     curve.erase("uncertainty");
+                     curve["description"] = fmt::format(
+                         "{}, every rate times 1 {:+.6f} (refined in situ)",
+                         model.material().description(), refined->rate_scale);
+                     return curve;
+                   }()}};
   nlohmann::json regions = nlohmann::json::array();
   for (const ResidualRegion& r : result.check.regions) {
     nlohmann::json item = {{"radiograph", r.radiograph},

@@ -161,9 +161,8 @@ void ForwardModel::useMaterial(const ExponentialSum& material) {
 void ForwardModel::addRateScale() {
   // The prior is the job's material's, the same for a model built on one of
   // its moved curves (the budget's), so that every model of one measurement
-  // weighs the refinement alike.
-  // Checked here, where every path to a measurement (a job, a study's run,
-  // the budget's moved models) passes.
+  // weighs the refinement alike. Checked here, where every path to a
+  // measurement (a job, a study's run, the budget's moved models) passes.
   const MeasurementJob& job = inputs_.job;
   if (!inputs_.material)
     fail("{}: /refine_material: the job names no material to refine", job.file.string());

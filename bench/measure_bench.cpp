@@ -16,6 +16,7 @@
 // - with --thesis, the thesis's schedule on t00-t03 too.
 #include "xgauge/core/config.h"
 #include "xgauge/core/log.h"
+#include "xgauge/core/memory.h"
 #include "xgauge/core/progress.h"
 #include "xgauge/lab/dataset.h"
 #include "xgauge/measure/measure.h"
@@ -108,6 +109,7 @@ double timed(int repeat, F&& f) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  keepLargeBlocksInHeap();  // as the command line does (core/memory.h)
   try {
     setupLogging(Verbosity::kQuiet);
     setProgressEnabled(false);

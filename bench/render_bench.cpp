@@ -10,9 +10,11 @@
 // same bracket written as one L-shaped extrusion minus the holes, and the
 // stepped shaft (Part 6). Each also times the prism jaw at the same size in
 // the same run and reports the ratio (`jaw_ms`, `x_jaw`).
+#include "xgauge/core/memory.h"
 #include "xgauge/core/parallel.h"
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/material/exponential_sum.h"
+#include "xgauge/xray/derivatives.h"
 #include "xgauge/xray/renderer.h"
 
 #include <benchmark/benchmark.h>
@@ -20,6 +22,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 
@@ -105,8 +108,9 @@ BENCHMARK(BM_Cylinder100k)->Unit(benchmark::kMillisecond)->UseRealTime();
 
 // Median milliseconds of `renders` renders of `mesh` at `pose`.
 double medianRenderMs(const TriangleMesh& mesh, const Pose& pose, int size, int samples,
-                      int renders, int edge_samples = 0) {
+                      int renders, int edge_samples = 0, PixelRect region = {}) {
   PosedRender render(mesh, pose, size, samples, edge_samples);
+  render.options.region = region;
   std::vector<double> ms;
   for (int i = 0; i < renders; ++i) {
     const auto start = std::chrono::steady_clock::now();
@@ -142,6 +146,57 @@ void BM_PrismJawEdgeRefined(benchmark::State& state) {
 BENCHMARK(BM_PrismJawEdgeRefined)
     ->ArgNames({"size", "edge"})
     ->ArgsProduct({{1024, 2048}, {4, 8}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
+
+// The render with derivatives (xray/derivatives.h) of the jaw for 14
+// parameters (a measurement's 8 dimensions and 6 pose parameters: every
+// vertex given its own velocity), 2 x 2 samples, against the plain render of
+// the same view in the same run (`plain_ms`, `x_plain`): the cost of one
+// Gauss-Newton iteration's Jacobian relative to one evaluation.
+void BM_PrismJawDerivatives(benchmark::State& state) {
+  const int size = static_cast<int>(state.range(0));
+  constexpr int kParameters = 14;
+  const PartModel jaw = PartModel::load(kParts + "prism_jaw.json");
+  const TriangleMesh mesh = jaw.mesh(jaw.nominalValues());
+  PosedRender render(mesh, kJawPose, size, 2);
+  // The region a measurement renders: the shadow's box and a margin of 8 px.
+  render();
+  int x0 = size, y0 = size, x1 = 0, y1 = 0;
+  for (int y = 0; y < size; ++y)
+    for (int x = 0; x < size; ++x)
+      if (render.image(x, y) < 1.0f)
+        x0 = std::min(x0, x), y0 = std::min(y0, y), x1 = std::max(x1, x), y1 = std::max(y1, y);
+  render.options.region = {std::max(0, x0 - 8), std::max(0, y0 - 8),
+                           std::min(size, x1 + 9) - std::max(0, x0 - 8),
+                           std::min(size, y1 + 9) - std::max(0, y0 - 8)};
+  const double plain_ms = medianRenderMs(mesh, kJawPose, size, 2, 15, 0, render.options.region);
+  std::vector<Vec3> velocities;
+  for (int k = 0; k < kParameters; ++k)
+    for (size_t v = 0; v < render.world.size(); ++v)
+      velocities.emplace_back(std::sin(1.0 + k + 0.37 * static_cast<double>(v)),
+                              std::cos(2.0 * k + 0.11 * static_cast<double>(v)),
+                              0.5 * std::sin(0.3 * k * static_cast<double>(v)));
+  IntensityDerivatives out;
+  const WorldMesh world{render.world, mesh.triangles, mesh.csg.get()};
+  std::vector<double> ms;
+  for (auto _ : state) {
+    const auto start = std::chrono::steady_clock::now();
+    renderIntensityDerivatives(render.machine, world, aluminium(), render.options, velocities,
+                               kParameters, out);
+    ms.push_back(std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start)
+                     .count());
+    benchmark::DoNotOptimize(out.intensity.pixels().data());
+  }
+  std::nth_element(ms.begin(), ms.begin() + static_cast<ptrdiff_t>(ms.size() / 2), ms.end());
+  state.counters["plain_ms"] = plain_ms;
+  state.counters["x_plain"] = ms[ms.size() / 2] / plain_ms;
+  state.counters["region_px"] = static_cast<double>(render.options.region.area());
+}
+BENCHMARK(BM_PrismJawDerivatives)
+    ->ArgName("size")
+    ->Arg(1024)
+    ->Arg(2048)
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
 
@@ -188,6 +243,7 @@ BENCHMARK(BM_SteppedShaft)->ArgName("size")->Arg(1024)->Arg(4096)->Unit(benchmar
 
 int main(int argc, char** argv) {
   // The target machine has 2 cores; measure on 2 threads wherever this runs.
+  xgauge::keepLargeBlocksInHeap();  // as the command line does (core/memory.h)
   xgauge::ThreadLimit limit(2);
   benchmark::Initialize(&argc, argv);
   benchmark::RunSpecifiedBenchmarks();

@@ -10,6 +10,7 @@
 
 #include "xgauge/core/error.h"
 #include "xgauge/core/log.h"
+#include "xgauge/core/memory.h"
 #include "xgauge/core/output.h"
 #include "xgauge/core/parallel.h"
 #include "xgauge/core/progress.h"
@@ -22,8 +23,9 @@
 #include <optional>
 
 int main(int argc, char** argv) {
-  // First, before any thread exists (core/output.h).
+  // First, before any thread exists (core/output.h, core/memory.h).
   xgauge::installInterruptCleanup();
+  xgauge::keepLargeBlocksInHeap();
   CLI::App app{"xgauge: dimensional measurement of parts from a few X-ray radiographs"};
   app.set_version_flag("--version", "xgauge " XGAUGE_VERSION_STRING);
   app.require_subcommand(1);

@@ -1,5 +1,7 @@
 #include "budget.h"
 
+#include "xgauge/measure/schedule.h"
+
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
@@ -225,13 +227,20 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   const int samples = fit.samples;
   std::vector<Influence> influences;
   const bool material_free = !model.materialIndices().empty();
+  // The re-solves take their Jacobian as the schedule's least-squares stage
+  // does: from the render with derivatives (one render per iteration) where
+  // it does, else by forward differences (1 + n renders).
+  const JacobianKind jacobian_kind =
+      scheduleFor(model.job().schedule).least_squares.render_derivatives
+          ? JacobianKind::kRenderDerivatives
+          : JacobianKind::kForwardDifferences;
   auto solveFrom = [&](ForwardModel& with, std::vector<double>& solved) {
     solved.assign(theta.begin(), theta.end());
     // Every re-solve weighs the refinement's prior as the fit did, so that
     // a moved model's own residual scale does not move e.
     const StageReport report = solveLeastSquares(
         with, solved, fit.indices, radiographs, level, samples, kResolveIterations, robust,
-        JacobianKind::kForwardDifferences, /*quiet=*/true, "joint",
+        jacobian_kind, /*quiet=*/true, "joint",
         fit.prior ? std::optional<double>(fit.prior->lambda) : std::nullopt);
     spdlog::debug("uncertainty: re-solve in {} evaluations, {:.2f} s ({})", report.evaluations,
                   report.seconds, report.termination);

@@ -4,6 +4,8 @@
 #include "xgauge/core/progress.h"
 
 #include <ceres/ceres.h>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -142,14 +144,29 @@ class ImageResiduals final : public ceres::CostFunction {
       transform(r_, residuals, derivative_.data());
       // The derivative of the transformed residual: its slope at r times the
       // raw residual's.
-      for (size_t m = 0; m < r_.size(); ++m)
-        for (size_t k = 0; k < n; ++k) jacobians[0][m * n + k] = derivative_[m] * j_[m * n + k];
+      tbb::parallel_for(tbb::blocked_range<size_t>(0, r_.size(), 4096),
+                        [&](const tbb::blocked_range<size_t>& rows) {
+                          for (size_t m = rows.begin(); m < rows.end(); ++m)
+                            for (size_t k = 0; k < n; ++k)
+                              jacobians[0][m * n + k] = derivative_[m] * j_[m * n + k];
+                        });
+      return true;
+    }
+    if (!want_jacobian && last_.size() == n &&
+        std::equal(last_.begin(), last_.end(), parameters[0])) {
+      // Ceres' projected line search (with bounds) evaluates the full step,
+      // and the trust region then evaluates the same candidate again.
+      std::copy(last_residuals_.begin(), last_residuals_.end(), residuals);
       return true;
     }
     if (!render(at, r_)) return false;
     derivative_.resize(r_.size());
     transform(r_, residuals, derivative_.data());
-    if (!want_jacobian) return true;
+    if (!want_jacobian) {
+      last_.assign(parameters[0], parameters[0] + n);
+      last_residuals_.assign(residuals, residuals + r_.size());
+      return true;
+    }
     std::vector<double> shifted_r;
     for (size_t k = 0; k < n; ++k) {
       const auto i = static_cast<size_t>(indices_[k]);
@@ -196,6 +213,8 @@ class ImageResiduals final : public ceres::CostFunction {
   JacobianKind jacobian_;
   ProgressBar* progress_;  // null: quiet
   mutable std::vector<double> r_, j_, derivative_;
+  // The last evaluation without a Jacobian: its parameters and residuals.
+  mutable std::vector<double> last_, last_residuals_;
   mutable int evaluations_ = 0, with_derivatives_ = 0;
 };
 

@@ -5,6 +5,8 @@
 #include "xgauge/xray/derivatives.h"
 #include "xgauge/xray/renderer.h"
 
+#include <tbb/parallel_for.h>
+
 #include <cmath>
 
 namespace xgauge {
@@ -18,17 +20,14 @@ Vec3 axisFromAngles(double azimuth_deg, double elevation_deg) {
 
 }  // namespace
 
-double ScatterEstimate::at(double u_level, double v_level) const {
+ScatterEstimate::Tap ScatterEstimate::tap(double u_level, double v_level) const {
   // Bilinear in coarse pixel-centre units.
   const double u = u_level * ratio - 0.5, v = v_level * ratio - 0.5;
   const double x = std::clamp(u, 0.0, blurred.width() - 1.0);
   const double y = std::clamp(v, 0.0, blurred.height() - 1.0);
   const int x0 = static_cast<int>(x), y0 = static_cast<int>(y);
-  const int x1 = std::min(x0 + 1, blurred.width() - 1), y1 = std::min(y0 + 1, blurred.height() - 1);
-  const double fx = x - x0, fy = y - y0;
-  auto value = [&](int i, int j) { return static_cast<double>(blurred(i, j)); };
-  return (1 - fy) * ((1 - fx) * value(x0, y0) + fx * value(x1, y0)) +
-         fy * ((1 - fx) * value(x0, y1) + fx * value(x1, y1));
+  return {x0, y0, std::min(x0 + 1, blurred.width() - 1), std::min(y0 + 1, blurred.height() - 1),
+          x - x0, y - y0};
 }
 
 namespace {
@@ -470,8 +469,14 @@ bool ForwardModel::residualsAndJacobian(std::span<const double> theta, std::span
       // residuals() has it: the render with derivatives samples each pixel
       // once, which is the per-shot error scatterRenderOptions() removes.
       spread = scatterOf(mesh, r, level);
-      for (const Image& rate : coarse.per_parameter)
+      for (const Image& rate : coarse.per_parameter) {
         spread_rates.push_back(spreadOf(rate, coarse_level, r, level, true));
+        // The image's interpolation taps serve every rate's below.
+        XG_CHECK(spread_rates.back().blurred.width() == spread->blurred.width() &&
+                     spread_rates.back().blurred.height() == spread->blurred.height() &&
+                     spread_rates.back().ratio == spread->ratio,
+                 "a derivative's scatter estimate on another grid than the image's");
+      }
     }
     const Image& measured = rad.levels[static_cast<size_t>(level)];
     const double scale = 1.0 / std::sqrt(static_cast<double>(roi.area()));
@@ -479,7 +484,8 @@ bool ForwardModel::residualsAndJacobian(std::span<const double> theta, std::span
     out.resize(first + static_cast<size_t>(roi.area()));
     jacobian.resize(out.size() * p, 0.0);
     const double w = scatter.weight;
-    for (int y = 0; y < roi.height; ++y)
+    // Rows in parallel: every pixel writes only its own residual and row.
+    tbb::parallel_for(0, roi.height, [&](int y) {
       for (int x = 0; x < roi.width; ++x) {
         const size_t m = first + static_cast<size_t>(y) * static_cast<size_t>(roi.width) +
                          static_cast<size_t>(x);
@@ -492,19 +498,21 @@ bool ForwardModel::residualsAndJacobian(std::span<const double> theta, std::span
                 scale * static_cast<double>(d.per_parameter[static_cast<size_t>(k)](x, y));
         } else {
           // out = mix(I, G) / open, as simulatePosed.
-          const double u = roi.x + x + 0.5, v = roi.y + y + 0.5;
-          simulated = static_cast<double>(spread->simulated(scatter, intensity, u, v));
+          const ScatterEstimate::Tap tap = spread->tap(roi.x + x + 0.5, roi.y + y + 0.5);
+          simulated = static_cast<double>(
+              static_cast<float>(scatter.mix(intensity, spread->at(tap)) / spread->open));
           for (int k = 0; k < count; ++k) {
             const ScatterEstimate& rate = spread_rates[static_cast<size_t>(k)];
             const double mixed =
                 (1.0 - w) * static_cast<double>(d.per_parameter[static_cast<size_t>(k)](x, y)) +
-                w * rate.at(u, v);
+                w * rate.at(tap);
             row[moving[static_cast<size_t>(k)]] =
                 scale * (mixed - simulated * rate.open) / spread->open;
           }
         }
         out[m] = scale * (simulated - static_cast<double>(measured(roi.x + x, roi.y + y)));
       }
+    });
   }
   // Material parameters: central differences of whole renders.
   std::vector<double> at(theta.begin(), theta.end()), plus, minus;

@@ -58,7 +58,20 @@ struct ScatterEstimate {
   double ratio = 1.0;  // coarse pixels per pixel of the level asked for
   double open = 1.0;   // (1 - w) + w mean of G(I) over the white region
   // G(I) at a continuous pixel coordinate of the level asked for (bilinear).
-  double at(double x, double y) const;
+  double at(double x, double y) const { return at(tap(x, y)); }
+  // The bilinear interpolation's four coarse pixels and weights at (x, y),
+  // the same for every estimate on the same coarse level (the derivatives'
+  // spreads share them with the image's).
+  struct Tap {
+    int x0, y0, x1, y1;
+    double fx, fy;
+  };
+  Tap tap(double x, double y) const;
+  double at(const Tap& t) const {
+    auto value = [&](int i, int j) { return static_cast<double>(blurred(i, j)); };
+    return (1 - t.fy) * ((1 - t.fx) * value(t.x0, t.y0) + t.fx * value(t.x1, t.y0)) +
+           t.fy * ((1 - t.fx) * value(t.x0, t.y1) + t.fx * value(t.x1, t.y1));
+  }
   // The simulated, normalized value of the pixel centred at (x, y) whose
   // scatter-free intensity is `intensity`: mix(I, G) / open.
   float simulated(const ScatterModel& scatter, double intensity, double x, double y) const {

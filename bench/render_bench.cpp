@@ -5,6 +5,10 @@
 // finely faceted cylinder of about 100,000 triangles at 2048^2; all on 2
 // threads, intensity output into a preallocated image (the optimiser's use).
 //
+// The render with derivatives of the jaw (14 parameters, 2 x 2 samples, the
+// shadow's region as a measurement renders it) against the plain render of
+// the same region in the same run.
+//
 // CSG parts at the jaw's magnification (3.5, part about 713 mm from the
 // detector): the angle bracket (Part 5, two boxes and three holes), the
 // same bracket written as one L-shaped extrusion minus the holes, and the

@@ -10,6 +10,7 @@
 #include <Eigen/QR>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <optional>
 #include <ranges>
@@ -254,6 +255,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   std::optional<bool> reference_solved;
   enum class Propagation { kLinearised, kReSolved };
   auto propagateInfluence = [&](ForwardModel& moved, Influence influence, Propagation how) {
+    const auto influence_start = std::chrono::steady_clock::now();
     Eigen::VectorXd shift(n);
     if (how == Propagation::kLinearised) {
       std::vector<double> moved_r;
@@ -281,6 +283,10 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       }
     }
     influence.delta_theta = project * shift;
+    spdlog::debug("uncertainty: {} {} in {:.2f} s", influence.name,
+                  how == Propagation::kLinearised ? "linearised" : "solved again",
+                  std::chrono::duration<double>(std::chrono::steady_clock::now() - influence_start)
+                      .count());
     influences.push_back(std::move(influence));
   };
   const MeasurementInputs& inputs = model.inputs();

@@ -260,8 +260,16 @@ void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementRe
         "be estimated");
     return;
   }
+  const auto secondsSince = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+  };
+  spdlog::debug("uncertainty: the Jacobian at the solution in {:.2f} s", secondsSince(start));
+  const auto budget_start = std::chrono::steady_clock::now();
   result.uncertainty = estimateUncertainty(model, theta, fit);
+  spdlog::debug("uncertainty: the budget in {:.2f} s", secondsSince(budget_start));
+  const auto checks_start = std::chrono::steady_clock::now();
   result.check = checkMeasurement(model, theta, fit);
+  spdlog::debug("uncertainty: the self-checks in {:.2f} s", secondsSince(checks_start));
   for (const std::string& note : result.uncertainty.notes) spdlog::info("uncertainty: {}", note);
   for (const std::string& warning : result.check.warnings) spdlog::warn("{}", warning);
   spdlog::info("uncertainty budget and self-checks in {:.2f} s",

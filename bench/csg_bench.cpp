@@ -11,6 +11,7 @@
 //     (the coarse pyramid level where a fit spends most evaluations) and
 //     1024^2, and of the corefined mesh with the plain renderer;
 // and the largest path difference between the two renders.
+#include "xgauge/core/memory.h"
 #include "xgauge/core/parallel.h"
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/material/exponential_sum.h"
@@ -81,6 +82,7 @@ TriangleMesh fromCgal(const Mesh& mesh) {
 }  // namespace
 
 int main() {
+  keepLargeBlocksInHeap();  // as the command line does (core/memory.h)
   ThreadLimit limit(2);
   const PartModel part = PartModel::load(std::string(XGAUGE_SOURCE_DIR) + "/parts/bracket.json");
   const TriangleMesh csg = part.mesh(part.nominalValues());

@@ -23,7 +23,8 @@
 #include <optional>
 
 int main(int argc, char** argv) {
-  // First, before any thread exists (core/output.h, core/memory.h).
+  // First: before any worker thread exists (core/output.h), before the work
+  // allocates (core/memory.h).
   xgauge::installInterruptCleanup();
   xgauge::keepLargeBlocksInHeap();
   CLI::App app{"xgauge: dimensional measurement of parts from a few X-ray radiographs"};

@@ -155,7 +155,9 @@ class ImageResiduals final : public ceres::CostFunction {
     if (!want_jacobian && last_.size() == n &&
         std::equal(last_.begin(), last_.end(), parameters[0])) {
       // Ceres' projected line search (with bounds) evaluates the full step,
-      // and the trust region then evaluates the same candidate again.
+      // and the trust region then evaluates the same candidate again (the
+      // same parameters; everything else an evaluation reads is fixed for
+      // this cost function).
       std::copy(last_residuals_.begin(), last_residuals_.end(), residuals);
       return true;
     }

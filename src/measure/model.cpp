@@ -499,8 +499,7 @@ bool ForwardModel::residualsAndJacobian(std::span<const double> theta, std::span
         } else {
           // out = mix(I, G) / open, as simulatePosed.
           const ScatterEstimate::Tap tap = spread->tap(roi.x + x + 0.5, roi.y + y + 0.5);
-          simulated = static_cast<double>(
-              static_cast<float>(scatter.mix(intensity, spread->at(tap)) / spread->open));
+          simulated = static_cast<double>(spread->simulated(scatter, intensity, tap));
           for (int k = 0; k < count; ++k) {
             const ScatterEstimate& rate = spread_rates[static_cast<size_t>(k)];
             const double mixed =

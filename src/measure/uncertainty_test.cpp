@@ -7,6 +7,7 @@
 #include "xgauge/measure/measure.h"
 
 #include "xgauge/core/error.h"
+#include "xgauge/core/parallel.h"
 #include "xgauge/core/progress.h"
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/image/tiff.h"
@@ -280,6 +281,15 @@ TEST_F(Uncertainty, TheFitsJacobianMatchesCentralDifferences) {
     ASSERT_TRUE(model_->residualsAndJacobian(at, model_->jointIndices(), 0, 2, both, rs, js));
     ASSERT_TRUE(model_->residuals(at, 0, 2, both, cs));
     ASSERT_EQ(rs, cs);
+    // The same residuals and Jacobian, bit for bit, on one thread (the
+    // pixels are assembled in parallel).
+    std::vector<double> r1, j1;
+    {
+      ThreadLimit one(1);
+      ASSERT_TRUE(model_->residualsAndJacobian(at, model_->jointIndices(), 0, 2, both, r1, j1));
+    }
+    EXPECT_EQ(r1, rs);
+    EXPECT_EQ(j1, js);
   }
 }
 

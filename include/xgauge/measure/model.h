@@ -75,7 +75,10 @@ struct ScatterEstimate {
   // The simulated, normalized value of the pixel centred at (x, y) whose
   // scatter-free intensity is `intensity`: mix(I, G) / open.
   float simulated(const ScatterModel& scatter, double intensity, double x, double y) const {
-    return static_cast<float>(scatter.mix(intensity, at(x, y)) / open);
+    return simulated(scatter, intensity, tap(x, y));
+  }
+  float simulated(const ScatterModel& scatter, double intensity, const Tap& t) const {
+    return static_cast<float>(scatter.mix(intensity, at(t)) / open);
   }
 };
 

@@ -135,6 +135,7 @@ class ImageResiduals final : public ceres::CostFunction {
     if (want_jacobian && jacobian_ == JacobianKind::kRenderDerivatives) {
       // The render with derivatives (xray/derivatives.h): one pass gives the
       // residuals and every column.
+      last_.clear();  // r_ and derivative_ are this point's from here
       count();
       ++with_derivatives_;
       if (!model_.residualsAndJacobian(at, indices_, level_, samples_, radiographs_, r_, j_) ||
@@ -152,22 +153,22 @@ class ImageResiduals final : public ceres::CostFunction {
                         });
       return true;
     }
-    if (!want_jacobian && last_.size() == n &&
-        std::equal(last_.begin(), last_.end(), parameters[0])) {
-      // Ceres' projected line search (with bounds) evaluates the full step,
-      // and the trust region then evaluates the same candidate again (the
-      // same parameters; everything else an evaluation reads is fixed for
-      // this cost function).
+    // The same point as the last render of r_: Ceres' projected line search
+    // (with bounds) evaluates the full step, the trust region then evaluates
+    // the same candidate again and, when it accepts it, asks for the
+    // Jacobian there. Everything else an evaluation reads is fixed for this
+    // cost function, so r_, its slopes and the residuals stand.
+    if (last_.size() == n && std::equal(last_.begin(), last_.end(), parameters[0])) {
       std::copy(last_residuals_.begin(), last_residuals_.end(), residuals);
-      return true;
-    }
-    if (!render(at, r_)) return false;
-    derivative_.resize(r_.size());
-    transform(r_, residuals, derivative_.data());
-    if (!want_jacobian) {
+      if (!want_jacobian) return true;
+    } else {
+      last_.clear();
+      if (!render(at, r_)) return false;
+      derivative_.resize(r_.size());
+      transform(r_, residuals, derivative_.data());
       last_.assign(parameters[0], parameters[0] + n);
       last_residuals_.assign(residuals, residuals + r_.size());
-      return true;
+      if (!want_jacobian) return true;
     }
     std::vector<double> shifted_r;
     for (size_t k = 0; k < n; ++k) {
@@ -215,7 +216,7 @@ class ImageResiduals final : public ceres::CostFunction {
   JacobianKind jacobian_;
   ProgressBar* progress_;  // null: quiet
   mutable std::vector<double> r_, j_, derivative_;
-  // The last evaluation without a Jacobian: its parameters and residuals.
+  // The point r_ was last rendered at (empty: none) and its residuals.
   mutable std::vector<double> last_, last_residuals_;
   mutable int evaluations_ = 0, with_derivatives_ = 0;
 };

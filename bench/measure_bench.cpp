@@ -5,11 +5,13 @@
 // On replica prism_a at 4096^2 (simulated into data/prism_a first if
 // missing), on this machine's cores, in one run:
 // - three 2-radiograph measurements (pairs t00-t03, t01-t04, t02-t05) with
-//   the `gauss-newton` schedule (the joint fit on the render's derivatives)
-//   and the same three with the default schedule (derivative-free BOBYQA
-//   joint stages): each one's wall time with and without the uncertainty budget,
-//   its renders (and how many with derivatives) and its errors (mean and
-//   max |error| over the 8 dimensions); the medians and their ratio;
+//   the default schedule (the joint fit on the render's derivatives, then
+//   least squares on refined renders), the same three with `bobyqa` (the
+//   previous default: derivative-free BOBYQA joint stages) and with
+//   `gauss-newton` (every stage on the render's derivatives): each one's
+//   wall time with and without the uncertainty budget, its renders (and how
+//   many with derivatives) and its errors (mean and max |error| over the 8
+//   dimensions); the medians and their ratios to the default's;
 // - the time of one evaluation of the residuals of both radiographs at the
 //   final stage's level, without and with the derivatives of the 16
 //   parameters;
@@ -87,7 +89,7 @@ double median(std::vector<double> values) {
 
 void print(const char* schedule, const std::vector<std::string>& pair, const Run& r) {
   std::printf(
-      "%-8s %s-%s: %5.1f s (fit %5.1f s, budget %5.1f s), %5d renders (%3d with derivatives), "
+      "%-12s %s-%s: %5.1f s (fit %5.1f s, budget %5.1f s), %5d renders (%3d with derivatives), "
       "mean |error| %.4f mm, max %.4f mm\n",
       schedule, pair[0].c_str(), pair[1].c_str(), r.seconds, r.fit_seconds,
       r.seconds - r.fit_seconds, r.renders, r.with_derivatives, r.mean_abs_mm, r.max_abs_mm);
@@ -129,14 +131,15 @@ int main(int argc, char** argv) {
     std::map<std::string, std::vector<Run>> runs;
     std::vector<double> solution;
     std::optional<MeasurementInputs> first_inputs;
-    for (const char* schedule : {"gauss-newton", "default"}) {
+    const std::vector<std::string> schedules{"default", "bobyqa", "gauss-newton"};
+    for (const std::string& schedule : schedules) {
       settings["schedule"] = schedule;
       for (const auto& pair : pairs) {
-        const bool keep = runs[schedule].empty() && std::string(schedule) == "gauss-newton";
+        const bool keep = runs[schedule].empty() && schedule == "default";
         runs[schedule].push_back(measureShots(settings, truth, inputs, prepared, pair,
                                               settings_file, keep ? &solution : nullptr,
                                               keep ? &first_inputs : nullptr));
-        print(schedule, pair, runs[schedule].back());
+        print(schedule.c_str(), pair, runs[schedule].back());
       }
     }
     if (argc > 2 && std::string(argv[2]) == "--thesis") {
@@ -150,23 +153,20 @@ int main(int argc, char** argv) {
       for (const Run& r : runs[schedule]) values.push_back(field(r));
       return median(values);
     };
-    const double fast = medianOf("gauss-newton", [](const Run& r) { return r.seconds; });
-    const double slow = medianOf("default", [](const Run& r) { return r.seconds; });
-    const double fast_fit = medianOf("gauss-newton", [](const Run& r) { return r.fit_seconds; });
-    const double slow_fit = medianOf("default", [](const Run& r) { return r.fit_seconds; });
-    std::printf(
-        "\nmedian time per 2-radiograph measurement: gauss-newton %.1f s, default %.1f s, ratio "
-        "%.2f\n",
-        fast, slow, slow / fast);
-    std::printf(
-        "median time of the fit alone (no budget):  gauss-newton %.1f s, default %.1f s, ratio "
-        "%.2f\n",
-        fast_fit, slow_fit, slow_fit / fast_fit);
-    std::printf(
-        "median renders per measurement: gauss-newton %.0f (%.0f with derivatives), default %.0f\n",
-        medianOf("gauss-newton", [](const Run& r) { return r.renders; }),
-        medianOf("gauss-newton", [](const Run& r) { return r.with_derivatives; }),
-        medianOf("default", [](const Run& r) { return r.renders; }));
+    const double base = medianOf("default", [](const Run& r) { return r.seconds; });
+    const double base_fit = medianOf("default", [](const Run& r) { return r.fit_seconds; });
+    std::printf("\nmedians per 2-radiograph measurement (ratio: its time over the default's):\n");
+    for (const std::string& schedule : schedules) {
+      const double seconds = medianOf(schedule, [](const Run& r) { return r.seconds; });
+      const double fit = medianOf(schedule, [](const Run& r) { return r.fit_seconds; });
+      std::printf(
+          "%-12s %5.1f s (ratio %.2f), fit alone %5.1f s (ratio %.2f), %5.0f renders (%.0f with "
+          "derivatives), mean |error| %.4f mm\n",
+          schedule.c_str(), seconds, seconds / base, fit, fit / base_fit,
+          medianOf(schedule, [](const Run& r) { return r.renders; }),
+          medianOf(schedule, [](const Run& r) { return r.with_derivatives; }),
+          medianOf(schedule, [](const Run& r) { return r.mean_abs_mm; }));
+    }
 
     // One evaluation of both radiographs' residuals at the final stage's
     // level, without and with the derivatives of every joint parameter.

@@ -19,13 +19,14 @@ namespace {
 constexpr double kMinMagnification = 1.05;
 
 // The pose search of a wedge of unknown turn and depth (wedge_part.h, step
-// 2): the default schedule's pose stages with the search over rz at 21
+// 2): the pose stages of the `bobyqa` schedule (the default's) with the
+// search over rz at 21
 // depths (magnifications about 8 % apart) on the level about 128 px wide
 // (600 samples each: about 15 degrees and a tenth of the window apart), 10
 // of its best distinct samples refined until converged (a start's depth may
 // be 4 % off).
 Schedule wedgeSchedule() {
-  Schedule s = scheduleFor(ScheduleKind::kDefault);
+  Schedule s = scheduleFor(ScheduleKind::kBobyqa);
   PoseSchedule& p = s.pose;
   p.search = {Method::kUniformSampling, 128, 0, 600, {}};
   p.search_rotation = 2;

@@ -239,7 +239,7 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
   if (!kind)
     root.at("schedule")
         .fail(
-            fmt::format("unknown schedule '{}' (known: default, gauss-newton, thesis)", schedule));
+            fmt::format("unknown schedule '{}' (known: default, bobyqa, gauss-newton, thesis)", schedule));
   job.schedule = *kind;
   const std::string loss = root.get<std::string>("loss", "l1");
   if (loss != "l1" && loss != "l2") root.at("loss").fail("expected \"l1\" or \"l2\"");
@@ -258,7 +258,7 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
     if (job.refine_material != MaterialRefinement::kNone && job.schedule == ScheduleKind::kThesis)
       refine->fail(
           "the thesis schedule has no least-squares stage to refine the material in (use "
-          "\"default\" or \"gauss-newton\")");
+          "\"default\", \"bobyqa\" or \"gauss-newton\")");
     if (job.refine_material != MaterialRefinement::kNone && own_poses < 2)
       refine->fail(
           "refining the material needs a radiograph that sees the part from another direction "

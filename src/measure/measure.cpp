@@ -189,7 +189,24 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
   const std::vector<int> least_squares = model.leastSquaresIndices();
   std::vector<int> every_radiograph;
   for (int r = 0; r < model.radiographCount(); ++r) every_radiograph.push_back(r);
-  for (const JointStage& stage : schedule.joint) {
+  // A line detector's images (a few rows) cost little per iteration and its
+  // fits run along long valleys (the depth against the move's axis):
+  // kLineIterationFactor times the least-squares iterations.
+  const bool line =
+      model.radiograph(0).levels[static_cast<size_t>(model.levelForWidth(
+                                     schedule.least_squares.min_width_px))]
+          .height() < kLineDetectorRows;
+  const int iteration_factor = line ? kLineIterationFactor : 1;
+  // On a line detector the joint fit is BOBYQA's: a row of 2 x 2 point
+  // samples across a cylinder's silhouette gave derivatives the trust region
+  // could not follow (measure_test's one-row cylinder: Levenberg-Marquardt
+  // ended at about 300 times the loss BOBYQA reaches, the diameter 0.05 mm
+  // off), and a row's renders are cheap enough for BOBYQA's thousands.
+  const bool derivatives = std::any_of(schedule.joint.begin(), schedule.joint.end(),
+                                       [](const JointStage& s) { return s.gauss_newton; });
+  const std::vector<JointStage>& joint =
+      line && derivatives ? scheduleFor(ScheduleKind::kBobyqa).joint : schedule.joint;
+  for (const JointStage& stage : joint) {
     if (!options.joint_search) break;
     const int level = model.levelForWidth(stage.min_width_px);
     const std::string name =
@@ -199,8 +216,7 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
             : std::string("joint");
     if (stage.gauss_newton) {
       runner.report(solveLeastSquares(model, theta, least_squares, every_radiograph, level,
-                                      stage.samples,
-                                      stage.evaluations,
+                                      stage.samples, stage.evaluations * iteration_factor,
                                       model.job().loss == LossKind::kMeanAbsolute,
                                       JacobianKind::kRenderDerivatives, false, name));
       continue;
@@ -223,19 +239,14 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     runner.run(plan);
   }
   const LeastSquaresStage& ls = schedule.least_squares;
-  // A line detector's images (a few rows) cost little per iteration and its
-  // fits run along long valleys (the depth against the move's axis):
-  // kLineIterationFactor times the iterations.
   const int ls_level = model.levelForWidth(ls.min_width_px);
-  const bool line =
-      model.radiograph(0).levels[static_cast<size_t>(ls_level)].height() < kLineDetectorRows;
   if (ls.enabled) {
     // From here on (this stage, the budget and the self-checks) the pixels
     // on edges are sampled finer (schedule.h, LeastSquaresStage::edge_samples).
     model.setEdgeSamples(ls.edge_samples);
     runner.report(solveLeastSquares(model, theta, least_squares, every_radiograph, ls_level,
                                     ls.samples,
-                                    ls.max_iterations * (line ? kLineIterationFactor : 1),
+                                    ls.max_iterations * iteration_factor,
                                     model.job().loss == LossKind::kMeanAbsolute,
                                     ls.render_derivatives ? JacobianKind::kRenderDerivatives
                                                           : JacobianKind::kForwardDifferences));

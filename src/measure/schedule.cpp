@@ -7,9 +7,11 @@ namespace {
 // First steps of a 6-DOF pose stage: rx, ry, rz (deg), x, y, z (mm).
 const std::vector<double> kPoseSteps{2.0, 5.0, 2.0, 1.0, 1.0, 10.0};
 
-Schedule makeDefault() {
+// The derivative-free schedule that was the default until the joint fit
+// moved onto the render's derivatives; kept for comparison (schedule.h).
+Schedule makeBobyqa() {
   Schedule s;
-  s.kind = ScheduleKind::kDefault;
+  s.kind = ScheduleKind::kBobyqa;
   PoseSchedule& p = s.pose;
   p.search = {Method::kUniformSampling, 256, 0, 150, {}};
   p.search_around_shadow = true;
@@ -33,11 +35,14 @@ Schedule makeDefault() {
   return s;
 }
 
-Schedule makeGaussNewton() {
-  Schedule s = makeDefault();
-  s.kind = ScheduleKind::kGaussNewton;
-  // Each iteration is one render with derivatives; a start from the pose
-  // steps converges in a handful on each level.
+Schedule makeDefault() {
+  Schedule s = makeBobyqa();
+  s.kind = ScheduleKind::kDefault;
+  // The joint fit by Levenberg-Marquardt on the render's derivatives: each
+  // iteration is one render with derivatives, and a start from the pose
+  // steps converges in a handful on each level. The least-squares stage
+  // (forward differences of renders whose edge pixels are refined) then
+  // takes the last step that the point-sampled derivatives cannot.
   JointStage coarse;
   coarse.gauss_newton = true;
   coarse.min_width_px = 512;
@@ -47,6 +52,12 @@ Schedule makeGaussNewton() {
   finer.min_width_px = 1024;
   finer.evaluations = 10;
   s.joint = {coarse, finer};
+  return s;
+}
+
+Schedule makeGaussNewton() {
+  Schedule s = makeDefault();
+  s.kind = ScheduleKind::kGaussNewton;
   s.least_squares.render_derivatives = true;
   s.least_squares.edge_samples = 0;  // the render's derivatives are those of its point samples
   return s;
@@ -68,11 +79,14 @@ Schedule makeThesis() {
 
 const Schedule& scheduleFor(ScheduleKind kind) {
   static const Schedule kDefault = makeDefault();
+  static const Schedule kBobyqa = makeBobyqa();
   static const Schedule kGaussNewton = makeGaussNewton();
   static const Schedule kThesis = makeThesis();
   switch (kind) {
     case ScheduleKind::kDefault:
       break;
+    case ScheduleKind::kBobyqa:
+      return kBobyqa;
     case ScheduleKind::kGaussNewton:
       return kGaussNewton;
     case ScheduleKind::kThesis:
@@ -85,6 +99,8 @@ std::string_view scheduleName(ScheduleKind kind) {
   switch (kind) {
     case ScheduleKind::kDefault:
       break;
+    case ScheduleKind::kBobyqa:
+      return "bobyqa";
     case ScheduleKind::kGaussNewton:
       return "gauss-newton";
     case ScheduleKind::kThesis:
@@ -95,7 +111,8 @@ std::string_view scheduleName(ScheduleKind kind) {
 
 std::optional<ScheduleKind> scheduleKindFromName(std::string_view name) {
   for (ScheduleKind kind :
-       {ScheduleKind::kDefault, ScheduleKind::kGaussNewton, ScheduleKind::kThesis})
+       {ScheduleKind::kDefault, ScheduleKind::kBobyqa, ScheduleKind::kGaussNewton,
+        ScheduleKind::kThesis})
     if (name == scheduleName(kind)) return kind;
   return std::nullopt;
 }

@@ -45,7 +45,8 @@
 //   tolerances         optional {name: {"nominal" (optional, default the part model's),
 //                      "lower", "upper"}}: tolerances of free dimensions, replacing the
 //                      part model's defaults (measure/tolerance.h)
-//   schedule           optional, "default" or "thesis" (measure/schedule.h)
+//   schedule           optional, "default", "bobyqa", "gauss-newton" or "thesis"
+//                      (measure/schedule.h)
 //   loss               optional, "l1" (thesis eq. 3.13, default) or "l2"
 //   seed               optional, default 1
 #pragma once

@@ -19,25 +19,29 @@
 //            are refined by BOBYQA (multi-start) and the best is refined on
 //            a level about 512 px wide; a translated radiograph's axis comes
 //            from the shift of its shadow's centroid. The joint fit runs by
-//            BOBYQA on levels about 512, 1024 and 2048 px wide with 2 x 2
-//            area samples, each in a window of ten first steps around the
-//            estimate so far; then least squares on the residuals (reweighted
-//            for the L1 loss) on the finest of those levels, with the pixels
-//            on edges and silhouettes sampled 8 x 8 (there and in the
-//            uncertainty budget).
-//   gauss-newton  the default's pose steps; then the joint fit by
 //            Gauss-Newton / Levenberg-Marquardt (Ceres) with the Jacobian of
 //            the render with derivatives (xray/derivatives.h) on levels about
-//            512 and 1024 px wide with 2 x 2 area samples, and the
-//            least-squares stage on the level about 2048 px wide. Opt-in: a
-//            wall seen along the beam moves the sampled image only in a strip
-//            of samples, and where that strip is narrower than the sample
-//            spacing the exact derivative of its edge is zero, so the joint
-//            fit may leave such an edge where the pose steps put it
-//            (docs/method.md, "Derivatives of the radiograph"), and its
-//            final stage fits point-sampled renders (no edge refinement):
-//            on Prism B at 1024^2 slot_depth's mean error doubled against
-//            the default's (docs/results.md, "Speed").
+//            512 and 1024 px wide with 2 x 2 area samples; then least squares
+//            on the residuals (reweighted for the L1 loss) on the level about
+//            2048 px wide, its Jacobian by forward differences of renders
+//            whose pixels on edges and silhouettes are sampled 8 x 8 (there
+//            and in the uncertainty budget). The derivatives are those of
+//            point samples: a wall seen along the beam moves the sampled
+//            image only in a strip of samples, and where that strip is
+//            narrower than the sample spacing the exact derivative of its
+//            edge is zero (docs/method.md, "Derivatives of the radiograph");
+//            the last stage's differences of refined renders see it.
+//   bobyqa   the default until the joint fit moved onto the derivatives,
+//            kept for comparison: the same pose steps, then the joint fit by
+//            BOBYQA on levels about 512, 1024 and 2048 px wide with 2 x 2
+//            area samples, each in a window of ten first steps around the
+//            estimate so far, then the default's least-squares stage.
+//   gauss-newton  the default with its least-squares stage (and the
+//            budget's re-solves) on the render's derivatives too, point
+//            samples only: about twice as fast as the default at
+//            4096^2, but it fits point-sampled renders (no edge
+//            refinement): on Prism B at 1024^2 slot_depth's mean error
+//            doubled against the default's (docs/results.md, "Speed").
 #pragma once
 
 #include "xgauge/optimize/minimize.h"
@@ -126,7 +130,7 @@ struct LeastSquaresStage {
   int edge_samples = 0;
 };
 
-enum class ScheduleKind { kDefault, kGaussNewton, kThesis };
+enum class ScheduleKind { kDefault, kBobyqa, kGaussNewton, kThesis };
 
 struct Schedule {
   ScheduleKind kind = ScheduleKind::kDefault;
@@ -137,7 +141,7 @@ struct Schedule {
 
 // The tables described at the top of this file.
 const Schedule& scheduleFor(ScheduleKind kind);
-// "default", "gauss-newton", "thesis".
+// "default", "bobyqa", "gauss-newton", "thesis".
 std::string_view scheduleName(ScheduleKind kind);
 // Inverse of scheduleName; nullopt for an unknown name.
 std::optional<ScheduleKind> scheduleKindFromName(std::string_view name);

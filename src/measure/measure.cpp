@@ -191,7 +191,7 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
   for (int r = 0; r < model.radiographCount(); ++r) every_radiograph.push_back(r);
   // A line detector's images (a few rows) cost little per iteration and its
   // fits run along long valleys (the depth against the move's axis):
-  // kLineIterationFactor times the least-squares iterations.
+  // kLineIterationFactor times the final stage's iterations.
   const bool line =
       model.radiograph(0).levels[static_cast<size_t>(model.levelForWidth(
                                      schedule.least_squares.min_width_px))]
@@ -216,7 +216,7 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
             : std::string("joint");
     if (stage.gauss_newton) {
       runner.report(solveLeastSquares(model, theta, least_squares, every_radiograph, level,
-                                      stage.samples, stage.evaluations * iteration_factor,
+                                      stage.samples, stage.evaluations,
                                       model.job().loss == LossKind::kMeanAbsolute,
                                       JacobianKind::kRenderDerivatives, false, name));
       continue;

@@ -453,6 +453,7 @@ bool ForwardModel::residualsAndJacobian(std::span<const double> theta, std::span
     const int count = static_cast<int>(moving.size());
     RenderOptions options;
     options.samples_per_axis = samples;
+    options.edge_samples_per_axis = edge_samples_ > samples ? std::min(edge_samples_, 32) : 0;
     options.region = roi;
     IntensityDerivatives d;
     renderIntensityDerivatives(machineAt(level), mesh, transmission_, options, velocities, count,

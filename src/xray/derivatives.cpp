@@ -81,22 +81,20 @@ PlaneRates planeRates(const Machine& machine, const WorldMesh& mesh, const Scene
 // and its derivative per parameter (parameter-contiguous).
 class BandTerms final : public raster::PathTerms {
  public:
+  // `gradient`: the band's samples times the parameters, zeroed by the
+  // caller where it will be read.
   BandTerms(const Machine& machine, const SceneSetup& scene, const PlaneRates& rates,
-            const Footprint& f, const Band& band, std::vector<double>& gradient)
+            const Footprint& f, const Band& band, double* gradient)
       : machine_(machine),
         scene_(scene),
         rates_(rates),
         f_(f),
         band_(band),
         p_(static_cast<size_t>(rates.parameters)),
-        gradient_(gradient) {
-    gradient_.assign(
-        static_cast<size_t>(band.row_end - band.row_begin) * static_cast<size_t>(f.width()) * p_,
-        0.0);
-  }
+        gradient_(gradient) {}
 
   double* at(int row, int column) {
-    return gradient_.data() +
+    return gradient_ +
            (static_cast<size_t>(row - band_.row_begin) * static_cast<size_t>(f_.width()) +
             static_cast<size_t>(column - f_.col_begin)) *
                p_;
@@ -129,8 +127,116 @@ class BandTerms final : public raster::PathTerms {
   const Footprint& f_;
   const Band& band_;
   size_t p_;
-  std::vector<double>& gradient_;
+  double* gradient_;
 };
+
+// Pixel (u, v)'s mean of I(x_s) and of I'(x_s) |r_s| d(sum_s) over its
+// samples, from a band's per-sample sums and derivatives (footprint `f`):
+// `pixel` gets the p derivatives.
+double resolvePixel(const std::vector<double>& sum, const std::vector<double>& gradient,
+                    const Band& band, const Footprint& f, const raster::SampleDistances& distances,
+                    const TransmissionTable& transmission, size_t p, int u, int v,
+                    std::vector<double>& pixel) {
+  const int n = f.n;
+  const size_t width = static_cast<size_t>(f.width());
+  double value = 0.0;
+  std::fill(pixel.begin(), pixel.end(), 0.0);
+  for (int j = 0; j < n; ++j) {
+    const int sample_row = v * n + j;
+    const double py2d2 = distances.py2d2(sample_row);
+    const size_t line = static_cast<size_t>(sample_row - band.row_begin) * width;
+    for (int i = 0; i < n; ++i) {
+      const size_t k = static_cast<size_t>(u * n + i - f.col_begin);
+      const double s = sum[line + k];
+      if (s == 0.0) {
+        value += 1.0;
+        continue;
+      }
+      const double distance = std::sqrt(distances.px2[k] + py2d2);
+      const double path = std::max(0.0, s * distance);
+      if (!(path > 0.0)) {  // held at zero: no attenuation and no derivative
+        value += 1.0;
+        continue;
+      }
+      value += transmission(path);
+      const double weight = transmission.slope(path) * distance;
+      const double* g = gradient.data() + (line + k) * p;
+      for (size_t q = 0; q < p; ++q) pixel[q] += weight * g[q];
+    }
+  }
+  const double inv_samples = 1.0 / (n * n);
+  for (double& q : pixel) q *= inv_samples;
+  return value * inv_samples;
+}
+
+void store(IntensityDerivatives& out, int x, int y, double value, const std::vector<double>& pixel) {
+  out.intensity(x, y) = static_cast<float>(value);
+  for (size_t q = 0; q < pixel.size(); ++q) out.per_parameter[q](x, y) = static_cast<float>(pixel[q]);
+}
+
+// The pixels of `runs` sampled again with m x m samples, their values and
+// derivatives replacing the n x n ones in `out` (as renderer.cpp's
+// refinePixels does for the image: the same samples, in the same order).
+void refineDerivatives(const Machine& machine, const WorldMesh& mesh,
+                       const TransmissionTable& transmission, int m, const raster::RefinedRuns& runs,
+                       std::span<const Vec3> velocities, int parameters, IntensityDerivatives& out) {
+  thread_local SceneSetup scratch;
+  SceneSetup& scene = scratch;
+  raster::setupMesh(machine, mesh, m, runs.region, scene);
+  if (scene.empty()) return;
+  const PlaneRates rates = planeRates(machine, mesh, scene, velocities, parameters);
+  const Footprint f = raster::layoutFootprint(scene, m, 1 + parameters);
+  const raster::SampleDistances distances = raster::sampleDistances(machine, f);
+  const size_t width = static_cast<size_t>(f.width());
+  const size_t p = static_cast<size_t>(parameters);
+  const PixelRect& region = runs.region;
+  tbb::parallel_for(size_t{0}, f.bands.size(), [&](size_t b) {
+    const Band& band = f.bands[b];
+    // Kept from render to render, as refinePixels' sums: only the refined
+    // samples are zeroed and read.
+    thread_local std::vector<double> sum, gradient, pixel;
+    const size_t samples = static_cast<size_t>(band.row_end - band.row_begin) * width;
+    sum.resize(std::max(sum.size(), samples));
+    gradient.resize(std::max(gradient.size(), samples * p));
+    pixel.resize(p);
+    int lo = 0, hi = 0;
+    for (int r = band.row_begin; r < band.row_end; ++r)
+      for (const auto& run : runs.row(r / m))
+        if (raster::clipRun(run, m, f.col_begin, f.col_end - 1, lo, hi)) {
+          const size_t first = static_cast<size_t>(r - band.row_begin) * width +
+                               static_cast<size_t>(lo - f.col_begin);
+          const size_t count = static_cast<size_t>(hi - lo + 1);
+          std::fill_n(sum.begin() + static_cast<ptrdiff_t>(first), count, 0.0);
+          std::fill_n(gradient.begin() + static_cast<ptrdiff_t>(first * p), count * p, 0.0);
+        }
+    BandTerms terms(machine, scene, rates, f, band, gradient.data());
+    for (uint32_t i : f.bins[b]) {
+      const TriangleSetup& t = scene.triangles[i];
+      const double sigma = t.sigma;
+      raster::forEachSpan(t, band.row_begin, band.row_end, [&](int line, int k0, int k1) {
+        // A row scan's line is a sample row, a column scan's a sample column.
+        for (const auto& run : t.by_rows ? runs.row(line / m) : runs.column(line / m)) {
+          if (!raster::clipRun(run, m, k0, k1, lo, hi)) continue;
+          for (int k = lo; k <= hi; ++k) {
+            const int row = t.by_rows ? line : k, column = t.by_rows ? k : line;
+            sum[static_cast<size_t>(row - band.row_begin) * width +
+                static_cast<size_t>(column - f.col_begin)] +=
+                sigma * raster::inverseMagnification(t, row, column);
+            terms.add(row, column, i, sigma);
+          }
+        }
+      });
+    }
+    for (int v = band.row_begin / m; v < band.row_end / m; ++v)
+      for (const auto& run : runs.row(v))
+        for (int u = std::max(run.first, f.col_begin / m);
+             u <= std::min(run.second, f.col_end / m - 1); ++u) {
+          const double value =
+              resolvePixel(sum, gradient, band, f, distances, transmission, p, u, v, pixel);
+          store(out, u - region.x, v - region.y, value, pixel);
+        }
+  });
+}
 
 void renderDerivativesIsolated(const Machine& machine, const WorldMesh& mesh,
                                const TransmissionTable& transmission, const RenderOptions& options,
@@ -154,7 +260,6 @@ void renderDerivativesIsolated(const Machine& machine, const WorldMesh& mesh,
   const PlaneRates rates = planeRates(machine, mesh, scene, velocities, parameters);
   const Footprint f = raster::layoutFootprint(scene, n, 1 + parameters);
   const raster::SampleDistances distances = raster::sampleDistances(machine, f);
-  const double inv_samples = 1.0 / (n * n);
   const size_t p = static_cast<size_t>(parameters);
   struct Buffers {
     std::vector<double> sum, gradient, pixel;
@@ -166,7 +271,8 @@ void renderDerivativesIsolated(const Machine& machine, const WorldMesh& mesh,
     Buffers& buf = buffers.local();
     const size_t width = static_cast<size_t>(f.width());
     buf.sum.assign(static_cast<size_t>(band.row_end - band.row_begin) * width, 0.0);
-    BandTerms terms(machine, scene, rates, f, band, buf.gradient);
+    buf.gradient.assign(buf.sum.size() * p, 0.0);
+    BandTerms terms(machine, scene, rates, f, band, buf.gradient.data());
     if (mesh.csg) {
       raster::accumulateCsgBand(scene, f.bins[b], *mesh.csg, band.row_begin, band.row_end,
                                 f.col_begin, f.width(), buf.sum.data(), buf.csg, &terms);
@@ -182,7 +288,6 @@ void renderDerivativesIsolated(const Machine& machine, const WorldMesh& mesh,
         });
       }
     }
-    // Resolve: per pixel, the mean of I(x_s) and of I'(x_s) |r_s| d(sum_s).
     buf.pixel.resize(p);
     for (int v = band.row_begin / n; v < band.row_end / n; ++v) {
       const int y = v - region.y;
@@ -190,37 +295,17 @@ void renderDerivativesIsolated(const Machine& machine, const WorldMesh& mesh,
       for (int u = f.col_begin / n; u < f.col_end / n; ++u) {
         const int x = u - region.x;
         if (x < 0 || x >= region.width) continue;
-        double value = 0.0;
-        std::fill(buf.pixel.begin(), buf.pixel.end(), 0.0);
-        for (int j = 0; j < n; ++j) {
-          const int sample_row = v * n + j;
-          const double py2d2 = distances.py2d2(sample_row);
-          const size_t line = static_cast<size_t>(sample_row - band.row_begin) * width;
-          for (int i = 0; i < n; ++i) {
-            const size_t k = static_cast<size_t>(u * n + i - f.col_begin);
-            const double s = buf.sum[line + k];
-            if (s == 0.0) {
-              value += 1.0;
-              continue;
-            }
-            const double distance = std::sqrt(distances.px2[k] + py2d2);
-            const double path = std::max(0.0, s * distance);
-            if (!(path > 0.0)) {  // held at zero: no attenuation and no derivative
-              value += 1.0;
-              continue;
-            }
-            value += transmission(path);
-            const double weight = transmission.slope(path) * distance;
-            const double* g = buf.gradient.data() + (line + k) * p;
-            for (size_t q = 0; q < p; ++q) buf.pixel[q] += weight * g[q];
-          }
-        }
-        out.intensity(x, y) = static_cast<float>(value * inv_samples);
-        for (size_t q = 0; q < p; ++q)
-          out.per_parameter[q](x, y) = static_cast<float>(buf.pixel[q] * inv_samples);
+        const double value =
+            resolvePixel(buf.sum, buf.gradient, band, f, distances, transmission, p, u, v, buf.pixel);
+        store(out, x, y, value, buf.pixel);
       }
     }
   });
+  // The edge refinement: as renderIntensity's, the same pixels sampled again.
+  const int m = options.edge_samples_per_axis;
+  if (m != 0 && !mesh.csg)
+    refineDerivatives(machine, mesh, transmission, m, raster::edgeRuns(machine, mesh, options),
+                      velocities, parameters, out);
 }
 
 }  // namespace

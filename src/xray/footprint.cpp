@@ -11,6 +11,11 @@ PixelRect resolveRegion(const Machine& machine, const RenderOptions& options) {
   machine.validate();
   if (options.samples_per_axis < 1 || options.samples_per_axis > 16)
     fail("samples per pixel axis must be 1 to 16, got {}", options.samples_per_axis);
+  const int n = options.samples_per_axis, m = options.edge_samples_per_axis;
+  if (m != 0 && (m <= n || m > 32))
+    fail("edge samples per pixel axis must be 0 or from {} to 32, got {}", n + 1, m);
+  if (m != 0 && !(options.edge_threshold > 0.0))
+    fail("the edge threshold must be positive, got {}", options.edge_threshold);
   if (options.region.empty()) return machine.detectorRect();
   if (!machine.detectorRect().contains(options.region))
     fail("render region {}x{}+{}+{} lies outside the {}x{} detector", options.region.width,

@@ -11,8 +11,10 @@
 
 #include "xgauge/xray/renderer.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdint>
+#include <utility>
 #include <vector>
 
 namespace xgauge::raster {
@@ -55,6 +57,34 @@ struct SampleDistances {
   }
 };
 SampleDistances sampleDistances(const Machine& machine, const Footprint& f);
+
+// Runs [first, last] of pixels (detector coordinates) along each pixel row
+// and each pixel column of a region: the pixels the edge refinement samples
+// again with m x m samples (RenderOptions::edge_samples_per_axis).
+struct RefinedRuns {
+  PixelRect region;
+  std::vector<std::vector<std::pair<int, int>>> rows, columns;
+  const std::vector<std::pair<int, int>>& row(int v) const {
+    return rows[static_cast<size_t>(v - region.y)];
+  }
+  const std::vector<std::pair<int, int>>& column(int u) const {
+    return columns[static_cast<size_t>(u - region.x)];
+  }
+};
+
+// Sample columns (or rows) [lo, hi] of pixel run `run` at m x m samples
+// per pixel, within [k0, k1]; false when none.
+inline bool clipRun(const std::pair<int, int>& run, int m, int k0, int k1, int& lo, int& hi) {
+  lo = std::max(k0, run.first * m), hi = std::min(k1, run.second * m + m - 1);
+  return lo <= hi;
+}
+
+// The pixels of options.region that renderIntensity refines with
+// options.edge_samples_per_axis (> samples_per_axis; not for CSG parts):
+// the same n x n render of the mean path and the same bend test, so that
+// the render with derivatives refines exactly those pixels. Call inside an
+// isolated task arena (renderer.cpp).
+RefinedRuns edgeRuns(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options);
 
 // Projects the mesh into `scene` and, for a CSG part, marks the pieces.
 void setupMesh(const Machine& machine, const WorldMesh& mesh, int n, const PixelRect& region,

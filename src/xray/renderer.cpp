@@ -14,6 +14,7 @@ namespace xgauge {
 
 using raster::Band;
 using raster::Footprint;
+using raster::RefinedRuns;
 using raster::SampleDistances;
 using raster::SceneSetup;
 using raster::TriangleSetup;
@@ -99,19 +100,6 @@ void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const R
                           double background, Shade shade, ImageT<T>& out,
                           PixelRect* footprint = nullptr, ImageT<double>* mean_path = nullptr);
 
-// Runs [first, last] of refined pixels (detector coordinates) along each
-// pixel row and each pixel column of a region.
-struct RefinedRuns {
-  PixelRect region;
-  std::vector<std::vector<std::pair<int, int>>> rows, columns;
-  const std::vector<std::pair<int, int>>& row(int v) const {
-    return rows[static_cast<size_t>(v - region.y)];
-  }
-  const std::vector<std::pair<int, int>>& column(int u) const {
-    return columns[static_cast<size_t>(u - region.x)];
-  }
-};
-
 // Grown by `by` pixels on every side.
 PixelRect grown(const PixelRect& r, int by) {
   return {r.x - by, r.y - by, r.width + 2 * by, r.height + 2 * by};
@@ -195,10 +183,8 @@ void refinePixels(const Machine& machine, const WorldMesh& mesh, int m, const Re
   const Footprint f = layoutFootprint(scene, m);
   const SampleDistances distances = sampleDistances(machine, f);
   const size_t width = static_cast<size_t>(f.width());
-  // Sample columns (or rows) [lo, hi] of pixel run `r`, within [k0, k1].
   const auto clip = [m](const std::pair<int, int>& r, int k0, int k1, int& lo, int& hi) {
-    lo = std::max(k0, r.first * m), hi = std::min(k1, r.second * m + m - 1);
-    return lo <= hi;
+    return raster::clipRun(r, m, k0, k1, lo, hi);
   };
   tbb::parallel_for(size_t{0}, f.bands.size(), [&](size_t b) {
     const Band& band = f.bands[b];
@@ -234,6 +220,12 @@ void refinePixels(const Machine& machine, const WorldMesh& mesh, int m, const Re
   });
 }
 
+// The region the bend test reads for `region`: 2 pixels more on every side
+// where the detector has them.
+PixelRect bendTestRegion(const Machine& machine, const PixelRect& region) {
+  return grown(region, 2).intersect(machine.detectorRect());
+}
+
 // Renders value(path_mm) averaged over each pixel's samples into `out`.
 // Isolated: while this thread waits inside its parallel loops it must not pick
 // up an unrelated render (say, another measurement of a study) that would
@@ -241,11 +233,7 @@ void refinePixels(const Machine& machine, const WorldMesh& mesh, int m, const Re
 template <typename T, typename Shade>
 void renderPixels(const Machine& machine, const WorldMesh& mesh, const RenderOptions& options,
                   double background, Shade shade, ImageT<T>& out) {
-  const int n = options.samples_per_axis, m = options.edge_samples_per_axis;
-  if (m != 0 && (m <= n || m > 32))
-    fail("edge samples per pixel axis must be 0 or from {} to 32, got {}", n + 1, m);
-  if (m != 0 && !(options.edge_threshold > 0.0))
-    fail("the edge threshold must be positive, got {}", options.edge_threshold);
+  const int m = options.edge_samples_per_axis;
   if (m == 0 || mesh.csg) {
     tbb::this_task_arena::isolate(
         [&] { renderPixelsIsolated(machine, mesh, options, background, shade, out); });
@@ -254,9 +242,7 @@ void renderPixels(const Machine& machine, const WorldMesh& mesh, const RenderOpt
   // n x n over the region and 2 pixels around it (so that a region's bend
   // test sees what a full render's does), then m x m where it bends.
   const PixelRect region = resolveRegion(machine, options);
-  const PixelRect wide =
-      PixelRect{region.x - 2, region.y - 2, region.width + 4, region.height + 4}.intersect(
-          machine.detectorRect());
+  const PixelRect wide = bendTestRegion(machine, region);
   RenderOptions plain = options;
   plain.region = wide;
   // Kept from render to render (an optimiser renders thousands of times):
@@ -333,6 +319,26 @@ void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const R
 }
 
 }  // namespace
+
+RefinedRuns raster::edgeRuns(const Machine& machine, const WorldMesh& mesh,
+                             const RenderOptions& options) {
+  const PixelRect region = resolveRegion(machine, options);
+  XG_CHECK(options.edge_samples_per_axis > options.samples_per_axis && !mesh.csg,
+           "edge runs without an edge refinement");
+  RenderOptions plain = options;
+  plain.edge_samples_per_axis = 0;
+  plain.region = bendTestRegion(machine, region);
+  thread_local ImageT<double> path;
+  PixelRect footprint;
+  renderPixelsIsolated(machine, mesh, plain, 0.0, identity, path, &footprint);
+  if (footprint.empty()) {  // nothing in the region: nothing to refine
+    RefinedRuns none{region, {}, {}};
+    none.rows.resize(static_cast<size_t>(region.height));
+    none.columns.resize(static_cast<size_t>(region.width));
+    return none;
+  }
+  return bentPixels(path, plain.region, region, footprint, options.edge_threshold);
+}
 
 RenderDiagnostics renderDiagnosticsIsolated(const Machine& machine, const WorldMesh& mesh,
                                             const RenderOptions& options);

@@ -39,6 +39,12 @@ namespace xgauge {
 // vertices and these interior terms are its whole derivative wherever it is
 // differentiable. Where it is not (a sample on an edge or a silhouette, a
 // face seen exactly edge-on), this is one of the one-sided derivatives.
+//
+// With options.edge_samples_per_axis = m, the pixels renderIntensity refines
+// (the same bend test) are the means of their m x m samples, values and
+// derivatives: the derivatives of the refined image, which comes with them
+// bit for bit. Which pixels are refined is held fixed (it changes only where
+// a bend crosses the threshold).
 struct IntensityDerivatives {
   Image intensity;                   // as renderIntensity
   std::vector<Image> per_parameter;  // d intensity / d theta_k over the region

@@ -47,9 +47,9 @@ struct RenderOptions {
   // pixel; m x m makes the steps m/n times finer where they occur, at the
   // cost of the pixels refined. Values are as deterministic as without it,
   // and a region gives the same pixels as a full render (the bend test looks
-  // 2 pixels past the region). CSG parts are not refined (their n x n image
-  // is kept), nor are renderDiagnostics and the derivatives
-  // (xray/derivatives.h).
+  // 2 pixels past the region). The render with derivatives refines the same
+  // pixels (xray/derivatives.h). CSG parts are not refined (their n x n
+  // image is kept), nor is renderDiagnostics.
   int edge_samples_per_axis = 0;
   // mm of path length.
   double edge_threshold = 0.01;

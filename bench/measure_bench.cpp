@@ -1,6 +1,6 @@
 // Measurement speed and accuracy (issues: measurement; analytic derivatives).
 // Run from the repository root: build/bench/measure_bench [dataset folder]
-// [--thesis]
+// [--thesis | --renders]
 //
 // On replica prism_a at 4096^2 (simulated into data/prism_a first if
 // missing), on this machine's cores, in one run:
@@ -14,8 +14,9 @@
 //   dimensions); the medians and their ratios to the default's;
 // - the time of one evaluation of the residuals of both radiographs at the
 //   final stage's level, without and with the derivatives of the 16
-//   parameters;
-// - with --thesis, the thesis's schedule on t00-t03 too.
+//   parameters, with point samples and with the edges refined;
+// - with --thesis, the thesis's schedule on t00-t03 too; with --renders,
+//   only the default on t00-t03 and the evaluation times.
 #include "xgauge/core/config.h"
 #include "xgauge/core/log.h"
 #include "xgauge/core/memory.h"
@@ -126,12 +127,14 @@ int main(int argc, char** argv) {
     const StudyInputs inputs = prepareStudyInputs(truth, settings, settings_file);
     PreparedShots prepared(inputs.machine);
 
-    const std::vector<std::vector<std::string>> pairs{
-        {"t00", "t03"}, {"t01", "t04"}, {"t02", "t05"}};
+    const bool renders_only = argc > 2 && std::string(argv[2]) == "--renders";
+    std::vector<std::vector<std::string>> pairs{{"t00", "t03"}, {"t01", "t04"}, {"t02", "t05"}};
+    if (renders_only) pairs.resize(1);
     std::map<std::string, std::vector<Run>> runs;
     std::vector<double> solution;
     std::optional<MeasurementInputs> first_inputs;
-    const std::vector<std::string> schedules{"default", "bobyqa", "gauss-newton"};
+    std::vector<std::string> schedules{"default", "bobyqa", "gauss-newton"};
+    if (renders_only) schedules.resize(1);
     for (const std::string& schedule : schedules) {
       settings["schedule"] = schedule;
       for (const auto& pair : pairs) {
@@ -176,15 +179,18 @@ int main(int argc, char** argv) {
     const std::vector<int> both{0, 1};
     const std::vector<int> joint = model.jointIndices();
     std::vector<double> r, j;
-    const double plain = timed(5, [&] { model.residuals(solution, level, ls.samples, both, r); });
-    const double with = timed(
-        5, [&] { model.residualsAndJacobian(solution, joint, level, ls.samples, both, r, j); });
-    std::printf(
-        "residuals of both radiographs at %d px, %d x %d samples: %.3f s; with the derivatives of "
-        "%zu "
-        "parameters: %.3f s (%.1f x)\n",
-        model.radiograph(0).levels[static_cast<size_t>(level)].width(), ls.samples, ls.samples,
-        plain, joint.size(), with, with / plain);
+    for (int edges : {0, ls.edge_samples}) {
+      model.setEdgeSamples(edges);
+      const double plain = timed(5, [&] { model.residuals(solution, level, ls.samples, both, r); });
+      const double with = timed(
+          5, [&] { model.residualsAndJacobian(solution, joint, level, ls.samples, both, r, j); });
+      std::printf(
+          "residuals of both radiographs at %d px, %d x %d samples%s: %.3f s; with the "
+          "derivatives of %zu parameters: %.3f s (%.1f x)\n",
+          model.radiograph(0).levels[static_cast<size_t>(level)].width(), ls.samples, ls.samples,
+          edges > 0 ? fmt::format(", edges {} x {}", edges, edges).c_str() : "", plain,
+          joint.size(), with, with / plain);
+    }
   } catch (const std::exception& e) {
     std::fprintf(stderr, "measure_bench: %s\n", e.what());
     return 1;

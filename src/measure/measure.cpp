@@ -238,7 +238,10 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
       }
     runner.run(plan);
   }
-  const LeastSquaresStage& ls = schedule.least_squares;
+  // Its least-squares stage too: forward differences of refined renders.
+  const LeastSquaresStage& ls =
+      line && derivatives ? scheduleFor(ScheduleKind::kBobyqa).least_squares
+                          : schedule.least_squares;
   const int ls_level = model.levelForWidth(ls.min_width_px);
   if (ls.enabled) {
     // From here on (this stage, the budget and the self-checks) the pixels

@@ -464,7 +464,9 @@ bool ForwardModel::residualsAndJacobian(std::span<const double> theta, std::span
     if (scatter.enabled()) {
       const int coarse_level = scatterLevel(level);
       IntensityDerivatives coarse;
-      renderIntensityDerivatives(machineAt(coarse_level), mesh, transmission_, scatterRenderOptions(),
+      RenderOptions coarse_options = scatterRenderOptions();
+      coarse_options.edge_samples_per_axis = 0;
+      renderIntensityDerivatives(machineAt(coarse_level), mesh, transmission_, coarse_options,
                                  velocities, count, coarse);
       // The value from the render whose edges are refined (scatterOf), as
       // residuals() has it: the render with derivatives samples each pixel

@@ -52,14 +52,16 @@ Schedule makeDefault() {
   finer.min_width_px = 1024;
   finer.evaluations = 10;
   s.joint = {coarse, finer};
+  // The least-squares stage on the derivatives of the refined render: its
+  // edge pixels' 8 x 8 samples are differentiated as the others' are.
+  s.least_squares.render_derivatives = true;
   return s;
 }
 
 Schedule makeGaussNewton() {
   Schedule s = makeDefault();
   s.kind = ScheduleKind::kGaussNewton;
-  s.least_squares.render_derivatives = true;
-  s.least_squares.edge_samples = 0;  // the render's derivatives are those of its point samples
+  s.least_squares.edge_samples = 0;  // point samples only
   return s;
 }
 

@@ -23,25 +23,25 @@
 //            the render with derivatives (xray/derivatives.h) on levels about
 //            512 and 1024 px wide with 2 x 2 area samples; then least squares
 //            on the residuals (reweighted for the L1 loss) on the level about
-//            2048 px wide, its Jacobian by forward differences of renders
-//            whose pixels on edges and silhouettes are sampled 8 x 8 (there
-//            and in the uncertainty budget). The derivatives are those of
-//            point samples: a wall seen along the beam moves the sampled
-//            image only in a strip of samples, and where that strip is
-//            narrower than the sample spacing the exact derivative of its
-//            edge is zero (docs/method.md, "Derivatives of the radiograph");
-//            the last stage's differences of refined renders see it.
+//            2048 px wide, of renders whose pixels on edges and silhouettes
+//            are sampled 8 x 8 (there and in the uncertainty budget), its
+//            Jacobian from the same refined render with derivatives. The
+//            derivatives are those of the samples: a wall seen along the
+//            beam moves the sampled image only in a strip of samples, and
+//            where that strip holds none the exact derivative of its edge is
+//            zero (docs/method.md, "Derivatives of the radiograph"); the 8 x 8
+//            samples on the edges make such strips four times narrower than
+//            the 2 x 2 ones do.
 //   bobyqa   the default until the joint fit moved onto the derivatives,
 //            kept for comparison: the same pose steps, then the joint fit by
 //            BOBYQA on levels about 512, 1024 and 2048 px wide with 2 x 2
 //            area samples, each in a window of ten first steps around the
-//            estimate so far, then the default's least-squares stage.
-//   gauss-newton  the default with its least-squares stage (and the
-//            budget's re-solves) on the render's derivatives too, point
-//            samples only: about twice as fast as the default at
-//            4096^2, but it fits point-sampled renders (no edge
-//            refinement): on Prism B at 1024^2 slot_depth's mean error
-//            doubled against the default's (docs/results.md, "Speed").
+//            estimate so far, then least squares as the default's, its
+//            Jacobian by forward differences of the refined renders.
+//   gauss-newton  the default with point samples alone in its least-squares
+//            stage and budget (no edge refinement): faster, but on Prism B
+//            at 1024^2 slot_depth's mean error doubled against a refined
+//            fit's (docs/results.md, "Speed").
 #pragma once
 
 #include "xgauge/optimize/minimize.h"

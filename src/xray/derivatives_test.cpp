@@ -44,6 +44,25 @@ RandomCase randomCase(const PartModel& part, std::mt19937_64& rng) {
   return c;
 }
 
+// A prism jaw at a random pose and dimensions (seed) before a 200 x 200
+// detector of 0.25 mm pixels.
+struct JawView {
+  explicit JawView(uint64_t seed) : part(PartModel::load(kParts + "prism_jaw.json")) {
+    std::mt19937_64 rng(seed);
+    const RandomCase c = randomCase(part, rng);
+    mesh = part.mesh(c.dimensions);
+    posed = testing::posed(mesh, Pose::fromEulerDeg(c.rotation_deg, c.translation_mm), world);
+  }
+  JawView(const JawView&) = delete;
+  JawView& operator=(const JawView&) = delete;
+  PartModel part;
+  Machine machine = testing::squareMachine(200, 0.25);
+  TriangleMesh mesh;
+  std::vector<Vec3> world;
+  WorldMesh posed;
+  TransmissionTable table = TransmissionTable::forMaterial(kMaterial, 1e3);
+};
+
 void expectGradientsAgree(const std::string& file, int samples, uint64_t seed,
                           int edge_samples = 0, double worst = 1e-4, double norm = 1e-4) {
   SCOPED_TRACE(file + ", " + std::to_string(samples) + " x " + std::to_string(samples) +
@@ -102,15 +121,11 @@ TEST(Derivatives, RefinedEdgesMatchCentralDifferences) {
 // plain m x m render: its value and derivatives are that render's, bit for
 // bit; every other pixel's are the plain n x n render's.
 TEST(Derivatives, RefinedPixelsAreThoseOfTheDenserRender) {
-  const PartModel part = PartModel::load(kParts + "prism_jaw.json");
-  std::mt19937_64 rng(17);
-  const RandomCase c = randomCase(part, rng);
-  const Machine machine = testing::squareMachine(200, 0.25);
-  const TriangleMesh mesh = part.mesh(c.dimensions);
-  std::vector<Vec3> world;
-  const WorldMesh posed =
-      testing::posed(mesh, Pose::fromEulerDeg(c.rotation_deg, c.translation_mm), world);
-  const TransmissionTable table = TransmissionTable::forMaterial(kMaterial, 1e3);
+  const JawView view(17);
+  const Machine& machine = view.machine;
+  const WorldMesh& posed = view.posed;
+  const TransmissionTable& table = view.table;
+  const std::vector<Vec3>& world = view.world;
   std::vector<Vec3> velocities(world.size(), Vec3(1.0, 0.0, 0.0));
   velocities.insert(velocities.end(), world.size(), Vec3(0.0, 0.3, 1.0));
   RenderOptions options;
@@ -154,15 +169,11 @@ TEST(Derivatives, CsgPartsMatchCentralDifferences) {
 // The image that comes with the derivatives is the image render's, bit for
 // bit, with and without the edge refinement.
 TEST(Derivatives, IntensityIsTheImageRendersOwn) {
-  const PartModel part = PartModel::load(kParts + "prism_jaw.json");
-  std::mt19937_64 rng(13);
-  const RandomCase c = randomCase(part, rng);
-  const Machine machine = testing::squareMachine(200, 0.25);
-  const TriangleMesh mesh = part.mesh(c.dimensions);
-  std::vector<Vec3> world;
-  const WorldMesh posed =
-      testing::posed(mesh, Pose::fromEulerDeg(c.rotation_deg, c.translation_mm), world);
-  const TransmissionTable table = TransmissionTable::forMaterial(kMaterial, 1e3);
+  const JawView view(13);
+  const Machine& machine = view.machine;
+  const WorldMesh& posed = view.posed;
+  const TransmissionTable& table = view.table;
+  const std::vector<Vec3>& world = view.world;
   long refined = 0;  // pixels where the refinement changed the image
   for (const auto& [n, m] : {std::pair{1, 0}, std::pair{3, 0}, std::pair{1, 4}, std::pair{2, 8}}) {
     RenderOptions options;

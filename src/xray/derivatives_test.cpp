@@ -122,23 +122,19 @@ TEST(Derivatives, RefinedEdgesMatchCentralDifferences) {
 // bit; every other pixel's are the plain n x n render's.
 TEST(Derivatives, RefinedPixelsAreThoseOfTheDenserRender) {
   const JawView view(17);
-  const Machine& machine = view.machine;
-  const WorldMesh& posed = view.posed;
-  const TransmissionTable& table = view.table;
-  const std::vector<Vec3>& world = view.world;
-  std::vector<Vec3> velocities(world.size(), Vec3(1.0, 0.0, 0.0));
-  velocities.insert(velocities.end(), world.size(), Vec3(0.0, 0.3, 1.0));
+  std::vector<Vec3> velocities(view.world.size(), Vec3(1.0, 0.0, 0.0));
+  velocities.insert(velocities.end(), view.world.size(), Vec3(0.0, 0.3, 1.0));
   RenderOptions options;
   options.samples_per_axis = 2;
   options.edge_samples_per_axis = 8;
   options.region = {30, 40, 120, 100};
   IntensityDerivatives refined, plain, dense;
-  renderIntensityDerivatives(machine, posed, table, options, velocities, 2, refined);
+  renderIntensityDerivatives(view.machine, view.posed, view.table, options, velocities, 2, refined);
   RenderOptions each = options;
   each.edge_samples_per_axis = 0;
-  renderIntensityDerivatives(machine, posed, table, each, velocities, 2, plain);
+  renderIntensityDerivatives(view.machine, view.posed, view.table, each, velocities, 2, plain);
   each.samples_per_axis = 8;
-  renderIntensityDerivatives(machine, posed, table, each, velocities, 2, dense);
+  renderIntensityDerivatives(view.machine, view.posed, view.table, each, velocities, 2, dense);
   const auto same = [](const IntensityDerivatives& a, const IntensityDerivatives& b, int x, int y) {
     return a.intensity(x, y) == b.intensity(x, y) &&
            a.per_parameter[0](x, y) == b.per_parameter[0](x, y) &&
@@ -170,10 +166,6 @@ TEST(Derivatives, CsgPartsMatchCentralDifferences) {
 // bit, with and without the edge refinement.
 TEST(Derivatives, IntensityIsTheImageRendersOwn) {
   const JawView view(13);
-  const Machine& machine = view.machine;
-  const WorldMesh& posed = view.posed;
-  const TransmissionTable& table = view.table;
-  const std::vector<Vec3>& world = view.world;
   long refined = 0;  // pixels where the refinement changed the image
   for (const auto& [n, m] : {std::pair{1, 0}, std::pair{3, 0}, std::pair{1, 4}, std::pair{2, 8}}) {
     RenderOptions options;
@@ -184,16 +176,16 @@ TEST(Derivatives, IntensityIsTheImageRendersOwn) {
       RenderOptions coarse = options;
       coarse.edge_samples_per_axis = 0;
       Image unrefined, fine;
-      renderIntensity(machine, posed, table, coarse, unrefined);
-      renderIntensity(machine, posed, table, options, fine);
+      renderIntensity(view.machine, view.posed, view.table, coarse, unrefined);
+      renderIntensity(view.machine, view.posed, view.table, options, fine);
       for (int y = 0; y < fine.height(); ++y)
         for (int x = 0; x < fine.width(); ++x) refined += fine(x, y) != unrefined(x, y);
     }
     Image plain;
-    renderIntensity(machine, posed, table, options, plain);
-    const std::vector<Vec3> velocities(2 * world.size(), Vec3(1.0, 0.0, 0.0));
+    renderIntensity(view.machine, view.posed, view.table, options, plain);
+    const std::vector<Vec3> velocities(2 * view.world.size(), Vec3(1.0, 0.0, 0.0));
     IntensityDerivatives with;
-    renderIntensityDerivatives(machine, posed, table, options, velocities, 2, with);
+    renderIntensityDerivatives(view.machine, view.posed, view.table, options, velocities, 2, with);
     ASSERT_EQ(with.intensity.width(), plain.width());
     ASSERT_EQ(with.per_parameter.size(), 2u);
     double moved = 0.0;

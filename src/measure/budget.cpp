@@ -276,8 +276,8 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       if (!with.residuals(x, fit.level, samples, radiographs, rx) ||
           rx.size() != static_cast<size_t>(m))
         return false;
-      Eigen::VectorXd g = jacobian.transpose() *
-                          w.cwiseProduct(Eigen::Map<const Eigen::VectorXd>(rx.data(), m));
+      Eigen::VectorXd g =
+          jacobian.transpose() * w.cwiseProduct(Eigen::Map<const Eigen::VectorXd>(rx.data(), m));
       if (fit.prior) {
         const auto i = static_cast<size_t>(fit.indices[static_cast<size_t>(fit.prior->column)]);
         g(fit.prior->column) += fit.prior->lambda * fit.prior->lambda * x[i];
@@ -288,8 +288,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
         x[static_cast<size_t>(fit.indices[static_cast<size_t>(k)])] += step(k);
         largest = std::max(largest, std::abs(step(k)) / fit.steps[static_cast<size_t>(k)]);
       }
-      spdlog::debug("uncertainty: chord step {}: {:.3g} of the linearisation's steps", it,
-                    largest);
+      spdlog::debug("uncertainty: chord step {}: {:.3g} of the linearisation's steps", it, largest);
       if (largest < kChordTolerance) break;
     }
     return true;
@@ -303,9 +302,9 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       if (!reference_iterated) reference_iterated = iterate(model, iterated_reference);
       std::vector<double> x;
       if (!*reference_iterated || !iterate(moved, x)) {
-        budget.notes.push_back(fmt::format(
-            "{}: the radiographs with it moved by u could not be simulated; left out",
-            influence.name));
+        budget.notes.push_back(
+            fmt::format("{}: the radiographs with it moved by u could not be simulated; left out",
+                        influence.name));
         return;
       }
       for (Eigen::Index k = 0; k < n; ++k) {
@@ -338,12 +337,12 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       }
     }
     influence.delta_theta = project * shift;
-    spdlog::debug("uncertainty: {} {} in {:.2f} s", influence.name,
-                  how == Propagation::kLinearised ? "linearised"
-                  : how == Propagation::kIterated ? "iterated"
-                                                  : "solved again",
-                  std::chrono::duration<double>(std::chrono::steady_clock::now() - influence_start)
-                      .count());
+    spdlog::debug(
+        "uncertainty: {} {} in {:.2f} s", influence.name,
+        how == Propagation::kLinearised ? "linearised"
+        : how == Propagation::kIterated ? "iterated"
+                                        : "solved again",
+        std::chrono::duration<double>(std::chrono::steady_clock::now() - influence_start).count());
     influences.push_back(std::move(influence));
   };
   const MeasurementInputs& inputs = model.inputs();

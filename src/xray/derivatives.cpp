@@ -169,17 +169,20 @@ double resolvePixel(const std::vector<double>& sum, const std::vector<double>& g
   return value * inv_samples;
 }
 
-void store(IntensityDerivatives& out, int x, int y, double value, const std::vector<double>& pixel) {
+void store(IntensityDerivatives& out, int x, int y, double value,
+           const std::vector<double>& pixel) {
   out.intensity(x, y) = static_cast<float>(value);
-  for (size_t q = 0; q < pixel.size(); ++q) out.per_parameter[q](x, y) = static_cast<float>(pixel[q]);
+  for (size_t q = 0; q < pixel.size(); ++q)
+    out.per_parameter[q](x, y) = static_cast<float>(pixel[q]);
 }
 
 // The pixels of `runs` sampled again with m x m samples, their values and
 // derivatives replacing the n x n ones in `out` (as renderer.cpp's
 // refinePixels does for the image: the same samples, in the same order).
 void refineDerivatives(const Machine& machine, const WorldMesh& mesh,
-                       const TransmissionTable& transmission, int m, const raster::RefinedRuns& runs,
-                       std::span<const Vec3> velocities, int parameters, IntensityDerivatives& out) {
+                       const TransmissionTable& transmission, int m,
+                       const raster::RefinedRuns& runs, std::span<const Vec3> velocities,
+                       int parameters, IntensityDerivatives& out) {
   thread_local SceneSetup scratch;
   SceneSetup& scene = scratch;
   raster::setupMesh(machine, mesh, m, runs.region, scene);
@@ -295,8 +298,8 @@ void renderDerivativesIsolated(const Machine& machine, const WorldMesh& mesh,
       for (int u = f.col_begin / n; u < f.col_end / n; ++u) {
         const int x = u - region.x;
         if (x < 0 || x >= region.width) continue;
-        const double value =
-            resolvePixel(buf.sum, buf.gradient, band, f, distances, transmission, p, u, v, buf.pixel);
+        const double value = resolvePixel(buf.sum, buf.gradient, band, f, distances, transmission,
+                                          p, u, v, buf.pixel);
         store(out, x, y, value, buf.pixel);
       }
     }

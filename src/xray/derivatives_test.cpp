@@ -63,8 +63,8 @@ struct JawView {
   TransmissionTable table = TransmissionTable::forMaterial(kMaterial, 1e3);
 };
 
-void expectGradientsAgree(const std::string& file, int samples, uint64_t seed,
-                          int edge_samples = 0, double worst = 1e-4, double norm = 1e-4) {
+void expectGradientsAgree(const std::string& file, int samples, uint64_t seed, int edge_samples = 0,
+                          double worst = 1e-4, double norm = 1e-4) {
   SCOPED_TRACE(file + ", " + std::to_string(samples) + " x " + std::to_string(samples) +
                " samples, edges " + std::to_string(edge_samples) + ", seed " +
                std::to_string(seed));
@@ -82,8 +82,8 @@ void expectGradientsAgree(const std::string& file, int samples, uint64_t seed,
   for (const GradientColumn& column : check.columns) {
     SCOPED_TRACE(column.name);
     if (column.scale <= GradientCheck::kMovesNothing) continue;  // off the detector, hidden
-    EXPECT_LT(column.worst, worst) << column.kinked << " of " << column.pixels + column.kinked
-                                  << " pixels left out";
+    EXPECT_LT(column.worst, worst)
+        << column.kinked << " of " << column.pixels + column.kinked << " pixels left out";
     EXPECT_LT(column.norm_error, norm);
     // Pixels left out are the few whose samples an edge crosses within the step.
     EXPECT_LT(column.kinked, (column.pixels + column.kinked) / 20 + 1);

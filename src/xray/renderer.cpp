@@ -14,14 +14,14 @@ namespace xgauge {
 
 using raster::Band;
 using raster::Footprint;
-using raster::RefinedRuns;
-using raster::SampleDistances;
-using raster::SceneSetup;
-using raster::TriangleSetup;
 using raster::layoutFootprint;
+using raster::RefinedRuns;
 using raster::resolveRegion;
+using raster::SampleDistances;
 using raster::sampleDistances;
+using raster::SceneSetup;
 using raster::setupMesh;
+using raster::TriangleSetup;
 
 namespace {
 

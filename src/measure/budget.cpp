@@ -1,4 +1,5 @@
 #include "budget.h"
+#include "stages.h"
 
 #include "xgauge/measure/schedule.h"
 
@@ -243,7 +244,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   // does: from the render with derivatives (one render per iteration) where
   // it does, else by forward differences (1 + n renders).
   const JacobianKind jacobian_kind =
-      scheduleFor(model.job().schedule).least_squares.render_derivatives
+      leastSquaresStage(model, scheduleFor(model.job().schedule)).render_derivatives
           ? JacobianKind::kRenderDerivatives
           : JacobianKind::kForwardDifferences;
   auto solveFrom = [&](ForwardModel& with, std::vector<double>& solved) {
@@ -269,13 +270,14 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   // A and J held fixed and the residuals r of `with` at each new x, until
   // the steps are below kChordTolerance of the linearisation's steps (or
   // kChordIterations). Its fixed point is where J^T W r = 0, as the fit's.
-  auto iterate = [&](ForwardModel& with, std::vector<double>& x) {
+  // Why it failed, or nullopt.
+  auto iterate = [&](ForwardModel& with, std::vector<double>& x) -> std::optional<std::string> {
     x.assign(theta.begin(), theta.end());
     std::vector<double> rx;
     for (int it = 0; it < kChordIterations; ++it) {
       if (!with.residuals(x, fit.level, samples, radiographs, rx) ||
           rx.size() != static_cast<size_t>(m))
-        return false;
+        return "the radiographs could not be simulated on the way";
       Eigen::VectorXd g =
           jacobian.transpose() * w.cwiseProduct(Eigen::Map<const Eigen::VectorXd>(rx.data(), m));
       if (fit.prior) {
@@ -289,22 +291,25 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
         largest = std::max(largest, std::abs(step(k)) / fit.steps[static_cast<size_t>(k)]);
       }
       spdlog::debug("uncertainty: chord step {}: {:.3g} of the linearisation's steps", it, largest);
-      if (largest < kChordTolerance) break;
+      if (largest < kChordTolerance) return std::nullopt;
     }
-    return true;
+    return fmt::format("its steps did not settle in {} iterations", kChordIterations);
   };
   std::vector<double> iterated_reference;
-  std::optional<bool> reference_iterated;
+  std::optional<std::optional<std::string>> reference_failure;  // set on the first use
   auto propagateInfluence = [&](ForwardModel& moved, Influence influence, Propagation how) {
     const auto influence_start = std::chrono::steady_clock::now();
     Eigen::VectorXd shift(n);
     if (how == Propagation::kIterated) {
-      if (!reference_iterated) reference_iterated = iterate(model, iterated_reference);
+      if (!reference_failure) reference_failure = iterate(model, iterated_reference);
       std::vector<double> x;
-      if (!*reference_iterated || !iterate(moved, x)) {
+      const std::optional<std::string> failure =
+          *reference_failure ? fmt::format("the unmoved fit: {}", **reference_failure)
+                             : iterate(moved, x);
+      if (failure) {
         budget.notes.push_back(
-            fmt::format("{}: the radiographs with it moved by u could not be simulated; left out",
-                        influence.name));
+            fmt::format("{}: the fit's linearised steps with it moved by u failed ({}); left out",
+                        influence.name, *failure));
         return;
       }
       for (Eigen::Index k = 0; k < n; ++k) {

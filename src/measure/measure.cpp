@@ -39,7 +39,6 @@ double firstStep(ParameterKind kind) {
   return 1.0;
 }
 
-constexpr int kLineDetectorRows = 8;
 constexpr int kLineIterationFactor = 10;
 
 StagePlan poseStage(const std::string& name, const PoseStage& stage, std::vector<int> indices,
@@ -180,26 +179,6 @@ void fitPose(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     runner.run(poseStage(spec.name + ": pose, finer", finer, pose, r, model));
 }
 
-// Whether the radiographs are a line detector's (a few rows).
-bool onLineDetector(const ForwardModel& model, const Schedule& schedule) {
-  return model.radiograph(0)
-             .levels[static_cast<size_t>(model.levelForWidth(schedule.least_squares.min_width_px))]
-             .height() < kLineDetectorRows;
-}
-
-// The schedule's least-squares stage, but on a line detector the `bobyqa`
-// schedule's (forward differences) wherever the schedule's fits run on the
-// derivatives: a row of 2 x 2 point samples across a cylinder's silhouette
-// gave derivatives the trust region could not follow (measure_test's
-// one-row cylinder: Levenberg-Marquardt ended at about 300 times the loss
-// BOBYQA reaches, the diameter 0.05 mm off), and a row's renders are cheap
-// enough for BOBYQA's thousands. Its joint fit is BOBYQA's too (fitJointly).
-const LeastSquaresStage& leastSquaresStage(const ForwardModel& model, const Schedule& schedule) {
-  if (schedule.least_squares.render_derivatives && onLineDetector(model, schedule))
-    return scheduleFor(ScheduleKind::kBobyqa).least_squares;
-  return schedule.least_squares;
-}
-
 // Every free parameter of every radiograph together, coarse to fine.
 void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
                 const Schedule& schedule, const MeasureOptions& options) {
@@ -214,6 +193,7 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
   // kLineIterationFactor times the final stage's iterations.
   const bool line = onLineDetector(model, schedule);
   const int iteration_factor = line ? kLineIterationFactor : 1;
+  // On a line detector the joint fit is BOBYQA's (stages.h, leastSquaresStage).
   const bool derivatives = std::any_of(schedule.joint.begin(), schedule.joint.end(),
                                        [](const JointStage& s) { return s.gauss_newton; });
   const std::vector<JointStage>& joint =
@@ -250,7 +230,7 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
       }
     runner.run(plan);
   }
-  const LeastSquaresStage& ls = leastSquaresStage(model, schedule);
+  const LeastSquaresStage ls = leastSquaresStage(model, schedule);
   const int ls_level = model.levelForWidth(ls.min_width_px);
   if (ls.enabled) {
     // From here on (this stage, the budget and the self-checks) the pixels
@@ -269,7 +249,7 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
 // Jacobian at the solution, on the least-squares stage's level.
 void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementResult& result) {
   const auto start = std::chrono::steady_clock::now();
-  const LeastSquaresStage& ls = leastSquaresStage(model, scheduleFor(model.job().schedule));
+  const LeastSquaresStage ls = leastSquaresStage(model, scheduleFor(model.job().schedule));
   const int level = model.levelForWidth(ls.min_width_px);
   std::vector<int> every_radiograph;
   for (int r = 0; r < model.radiographCount(); ++r) every_radiograph.push_back(r);

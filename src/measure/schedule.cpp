@@ -40,9 +40,7 @@ Schedule makeDefault() {
   s.kind = ScheduleKind::kDefault;
   // The joint fit by Levenberg-Marquardt on the render's derivatives: each
   // iteration is one render with derivatives, and a start from the pose
-  // steps converges in a handful on each level. The least-squares stage
-  // (forward differences of renders whose edge pixels are refined) then
-  // takes the last step that the point-sampled derivatives cannot.
+  // steps converges in a handful on each level.
   JointStage coarse;
   coarse.gauss_newton = true;
   coarse.min_width_px = 512;

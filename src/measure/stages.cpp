@@ -116,4 +116,17 @@ Vec2 shadowCentroid(const PreparedRadiograph& r, int level) {
   return {su / sw * s, sv / sw * s};
 }
 
+bool onLineDetector(const ForwardModel& model, const Schedule& schedule) {
+  constexpr int kLineDetectorRows = 8;
+  return model.radiograph(0)
+             .levels[static_cast<size_t>(model.levelForWidth(schedule.least_squares.min_width_px))]
+             .height() < kLineDetectorRows;
+}
+
+LeastSquaresStage leastSquaresStage(const ForwardModel& model, const Schedule& schedule) {
+  LeastSquaresStage stage = schedule.least_squares;
+  if (onLineDetector(model, schedule)) stage.render_derivatives = false;
+  return stage;
+}
+
 }  // namespace xgauge

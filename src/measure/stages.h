@@ -6,6 +6,7 @@
 
 #include "xgauge/measure/measure.h"
 #include "xgauge/measure/model.h"
+#include "xgauge/measure/schedule.h"
 #include "xgauge/optimize/minimize.h"
 
 #include <string>
@@ -58,5 +59,18 @@ std::vector<std::vector<double>> distinctBest(
 // Absorption-weighted centroid of a radiograph's roi at `level`, in full-size
 // continuous pixel coordinates.
 Vec2 shadowCentroid(const PreparedRadiograph& r, int level);
+
+// Whether the model's radiographs are a line detector's (fewer than 8 rows
+// on the least-squares stage's level).
+bool onLineDetector(const ForwardModel& model, const Schedule& schedule);
+
+// The schedule's least-squares stage as the fit and the budget run it for
+// this model: on a line detector its Jacobian by forward differences
+// wherever the schedule takes it from the render's derivatives (a row of
+// 2 x 2 point samples across a cylinder's silhouette gave derivatives the
+// trust region could not follow: measure_test's one-row cylinder ended at
+// about 300 times the loss BOBYQA reaches, the diameter 0.05 mm off; the
+// joint fit there is BOBYQA's, measure.cpp).
+LeastSquaresStage leastSquaresStage(const ForwardModel& model, const Schedule& schedule);
 
 }  // namespace xgauge

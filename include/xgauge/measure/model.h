@@ -217,6 +217,9 @@ class ForwardModel {
     options.edge_samples_per_axis = 8;
     return options;
   }
+  // n x n samples over `region`, the edges refined as setEdgeSamples says:
+  // the same for the image and for the render with derivatives.
+  RenderOptions renderOptions(int samples, const PixelRect& region) const;
   Image simulatePosed(const WorldMesh& mesh, int radiograph, int level, int samples,
                       const PixelRect& region);
   // Calls use(radiograph, roi, simulated roi) for each of `radiographs`;

@@ -559,6 +559,15 @@ namespace {
 // the same measurement judged against three tolerance zones built around
 // its own value and U.
 TEST_F(MeasureJob, ExitStatusGivesTheVerdicts) {
+  // A radiograph the model explains (the fixture's flat rectangle fits no
+  // cuboid, and the U of such a fit is anything from 0.2 to 15 mm).
+  const CommandResult rendered =
+      run("render " + kRoot + "/parts/cuboid.json --machine " + out("machine.json") +
+          " --material " + out("material.json") +
+          " --rotation-deg 1 -2 0.5 --translation-mm 1 -2 400 --set size_x=20 --set size_y=20"
+          " --set size_z=10 -n 3 --format f32 -o " +
+          out("a.tif"));
+  ASSERT_EQ(rendered.status, 0) << rendered.output;
   const CommandResult first = run("measure " + job() + " -o " + out("plain") + " -q");
   ASSERT_EQ(first.status, 0) << first.output;
   EXPECT_TRUE(fs::exists(out("plain") + "/report.html"));
@@ -577,6 +586,7 @@ TEST_F(MeasureJob, ExitStatusGivesTheVerdicts) {
     const CommandResult r =
         run("measure " + job("", tolerances) + " -o " + out(name) + " -q --no-report");
     EXPECT_FALSE(fs::exists(out(name) + "/report.html"));
+    EXPECT_TRUE(fs::exists(out(name) + "/result.json")) << r.output;
     std::ifstream file(out(name) + "/result.json");
     const nlohmann::json judged = nlohmann::json::parse(file);
     EXPECT_EQ(judged.at("dimensions").at(0).at("value_mm").get<double>(), value);  // deterministic
@@ -587,6 +597,7 @@ TEST_F(MeasureJob, ExitStatusGivesTheVerdicts) {
   EXPECT_EQ(verdict(value, -(2.0 * u + 0.5), 2.0 * u + 0.5, "conforms"),
             (std::pair<int, std::string>{0, "conforms"}));
   // Outside the zone widened by U: does not conform, exit 3.
+  ASSERT_LT(u, 1.0);
   EXPECT_EQ(verdict(value + 1.0 + 2.0 * u, -0.5, 0.5, "nonconforming"),
             (std::pair<int, std::string>{3, "does not conform"}));
   // Inside the zone but within U of its upper limit: inconclusive, exit 2.

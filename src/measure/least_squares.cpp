@@ -108,11 +108,13 @@ double huberLoss(const std::vector<double>& r, const std::vector<ResidualSegment
 class ImageResiduals final : public ceres::CostFunction {
  public:
   ImageResiduals(ForwardModel& model, std::vector<double> theta, std::vector<int> indices,
-                 std::vector<int> radiographs, std::vector<ResidualSegment> segments, int level,
-                 int samples, size_t count, JacobianKind jacobian, ProgressBar* progress)
+                 std::vector<double> scales, std::vector<int> radiographs,
+                 std::vector<ResidualSegment> segments, int level, int samples, size_t count,
+                 JacobianKind jacobian, ProgressBar* progress)
       : model_(model),
         theta_(std::move(theta)),
         indices_(std::move(indices)),
+        scales_(std::move(scales)),
         radiographs_(std::move(radiographs)),
         segments_(std::move(segments)),
         level_(level),
@@ -130,7 +132,8 @@ class ImageResiduals final : public ceres::CostFunction {
                 double** jacobians) const override {
     const size_t n = indices_.size();
     std::vector<double> at = theta_;
-    for (size_t k = 0; k < n; ++k) at[static_cast<size_t>(indices_[k])] = parameters[0][k];
+    for (size_t k = 0; k < n; ++k)
+      at[static_cast<size_t>(indices_[k])] = parameters[0][k] * scales_[k];
     const bool want_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
     if (want_jacobian && jacobian_ == JacobianKind::kRenderDerivatives) {
       // The render with derivatives (xray/derivatives.h): one pass gives the
@@ -149,7 +152,7 @@ class ImageResiduals final : public ceres::CostFunction {
                         [&](const tbb::blocked_range<size_t>& rows) {
                           for (size_t m = rows.begin(); m < rows.end(); ++m)
                             for (size_t k = 0; k < n; ++k)
-                              jacobians[0][m * n + k] = derivative_[m] * j_[m * n + k];
+                              jacobians[0][m * n + k] = derivative_[m] * j_[m * n + k] * scales_[k];
                         });
       return true;
     }
@@ -183,7 +186,7 @@ class ImageResiduals final : public ceres::CostFunction {
       // The derivative of the transformed residual: its slope at r times
       // the raw residual's difference quotient (no jump across the threshold).
       for (size_t m = 0; m < r_.size(); ++m)
-        jacobians[0][m * n + k] = derivative_[m] * (shifted_r[m] - r_[m]) / step;
+        jacobians[0][m * n + k] = derivative_[m] * (shifted_r[m] - r_[m]) / step * scales_[k];
     }
     return true;
   }
@@ -210,7 +213,9 @@ class ImageResiduals final : public ceres::CostFunction {
 
   ForwardModel& model_;
   std::vector<double> theta_;
-  std::vector<int> indices_, radiographs_;
+  std::vector<int> indices_;
+  std::vector<double> scales_;  // theta[indices_[k]] = x[k] * scales_[k]
+  std::vector<int> radiographs_;
   std::vector<ResidualSegment> segments_;
   int level_, samples_;
   JacobianKind jacobian_;
@@ -225,21 +230,34 @@ class ImageResiduals final : public ceres::CostFunction {
 // over the same parameters.
 class PriorResidual final : public ceres::CostFunction {
  public:
-  PriorResidual(RateScalePrior prior, int parameters) : prior_(prior), n_(parameters) {
+  PriorResidual(RateScalePrior prior, double scale, int parameters)
+      : prior_(prior), scale_(scale), n_(parameters) {
     set_num_residuals(1);
     mutable_parameter_block_sizes()->push_back(parameters);
   }
   bool Evaluate(double const* const* parameters, double* residuals,
                 double** jacobians) const override {
-    residuals[0] = prior_.lambda * parameters[0][prior_.column];
+    residuals[0] = prior_.lambda * scale_ * parameters[0][prior_.column];
     if (jacobians != nullptr && jacobians[0] != nullptr)
-      for (int k = 0; k < n_; ++k) jacobians[0][k] = k == prior_.column ? prior_.lambda : 0.0;
+      for (int k = 0; k < n_; ++k)
+        jacobians[0][k] = k == prior_.column ? prior_.lambda * scale_ : 0.0;
     return true;
   }
 
  private:
   RateScalePrior prior_;
+  double scale_;  // of the solver's variable (solveLeastSquares)
   int n_;
+};
+
+// Logs each iteration of a stage (at debug level).
+class IterationLog final : public ceres::IterationCallback {
+ public:
+  ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
+    spdlog::debug("  iteration {}: loss {:.9g}, step {:.3g} linearisation steps, {}", s.iteration,
+                  2.0 * s.cost, s.step_norm, s.step_is_successful ? "taken" : "rejected");
+    return ceres::SOLVER_CONTINUE;
+  }
 };
 
 }  // namespace
@@ -344,7 +362,7 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
                               const std::vector<int>& indices, const std::vector<int>& radiographs,
                               int level, int samples, int max_iterations, bool robust,
                               JacobianKind jacobian, bool quiet, std::string_view label,
-                              std::optional<double> prior_lambda) {
+                              std::optional<double> prior_lambda, double settled_steps) {
   const auto start = std::chrono::steady_clock::now();
   StageReport report;
   report.name = fmt::format("{}, {}", label, robust ? "robust least squares" : "least squares");
@@ -363,35 +381,44 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
   report.evaluations =
       1 + (robust || model.rateScaleIndex() >= 0 ? static_cast<int>(radiographs.size()) : 0);
 
+  // The solver's variables are the parameters in units of their
+  // linearisation steps (a step moves the outline by about 0.2 pixels of the
+  // level), so that a step's norm says how far the outline moved, whatever
+  // mixes of mm and degrees the stage frees (Levenberg-Marquardt with Jacobi
+  // scaling takes the same steps in either units).
   const size_t n = indices.size();
+  std::vector<double> scales = linearSteps(model, theta, indices, level);
+  for (double& scale : scales)
+    if (!(scale > 0.0 && std::isfinite(scale))) scale = 1.0;  // a parameter without range
   std::vector<double> x(n);
   for (size_t k = 0; k < n; ++k) {
     const auto i = static_cast<size_t>(indices[k]);
-    x[k] = std::clamp(theta[i], model.lower()[i], model.upper()[i]);
+    x[k] = std::clamp(theta[i], model.lower()[i], model.upper()[i]) / scales[k];
   }
+  const auto prior_column = prior ? static_cast<size_t>(prior->column) : 0;
   const double prior_loss =
-      prior ? std::pow(prior->lambda * x[static_cast<size_t>(prior->column)], 2) : 0.0;
+      prior ? std::pow(prior->lambda * x[prior_column] * scales[prior_column], 2) : 0.0;
   report.loss_before = huberLoss(r, segments) + prior_loss;
   std::optional<ProgressBar> progress;
   if (!quiet)
     progress.emplace(report.name, jacobian == JacobianKind::kRenderDerivatives
                                       ? 2 * max_iterations + 1
                                       : max_iterations * static_cast<int>(n + 2));
-  ImageResiduals cost(model, theta, indices, radiographs, segments, level, samples, r.size(),
-                      jacobian, progress ? &*progress : nullptr);
+  ImageResiduals cost(model, theta, indices, scales, radiographs, segments, level, samples,
+                      r.size(), jacobian, progress ? &*progress : nullptr);
   ceres::Problem::Options problem_options;
   problem_options.cost_function_ownership = ceres::DO_NOT_TAKE_OWNERSHIP;
   ceres::Problem problem(problem_options);
   problem.AddResidualBlock(&cost, nullptr, x.data());
   std::optional<PriorResidual> prior_cost;
   if (prior) {
-    prior_cost.emplace(*prior, static_cast<int>(n));
+    prior_cost.emplace(*prior, scales[prior_column], static_cast<int>(n));
     problem.AddResidualBlock(&*prior_cost, nullptr, x.data());
   }
   for (size_t k = 0; k < n; ++k) {
     const auto i = static_cast<size_t>(indices[k]);
-    problem.SetParameterLowerBound(x.data(), static_cast<int>(k), model.lower()[i]);
-    problem.SetParameterUpperBound(x.data(), static_cast<int>(k), model.upper()[i]);
+    problem.SetParameterLowerBound(x.data(), static_cast<int>(k), model.lower()[i] / scales[k]);
+    problem.SetParameterUpperBound(x.data(), static_cast<int>(k), model.upper()[i] / scales[k]);
   }
   ceres::Solver::Options options;
   options.trust_region_strategy_type = ceres::LEVENBERG_MARQUARDT;
@@ -405,15 +432,34 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
   // alone, and at a Gauss-Newton step that already decreases it enough
   // there is nothing to interpolate.
   options.line_search_interpolation_type = ceres::BISECTION;
+  // The search only has to keep the step inside the bounds (Ceres projects
+  // it there): whether the step is taken is the trust region's to decide.
+  // Searching further cost a render per halving, and near the solution,
+  // where the step is smaller than what the float image resolves, it
+  // halved twenty times before giving up.
+  options.max_num_line_search_step_size_iterations = 1;
   options.max_num_iterations = max_iterations;
-  options.function_tolerance = 1e-10;
-  options.parameter_tolerance = 1e-9;
+  // Converged when a step would move the parameters, together, by less than
+  // settled_steps of their linearisation steps (the variables' units; see
+  // kSettledSteps). Ceres' tolerance is relative to the variables' norm,
+  // which the start gives closely enough; it is checked before a step is
+  // taken, so the last, negligible step costs one render and no render with
+  // derivatives. Or when a step lowers the loss by less than 1 / (100 N) of
+  // it, N residuals: for independent pixels, what a tenth of a standard
+  // deviation in the parameters is worth.
+  const double norm =
+      Eigen::Map<const Eigen::VectorXd>(x.data(), static_cast<Eigen::Index>(n)).norm();
+  options.parameter_tolerance = settled_steps / std::max(1.0, norm);
+  options.function_tolerance = std::min(1e-6, 0.01 / static_cast<double>(r.size()));
   options.num_threads = 1;  // one residual block; the renderer is parallel itself
   options.logging_type = ceres::SILENT;
   options.minimizer_progress_to_stdout = false;
+  IterationLog log;
+  options.callbacks.push_back(&log);
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
   if (progress) progress->finish();
+  spdlog::debug("{}: {}", report.name, summary.FullReport());
 
   report.evaluations += cost.evaluations();
   report.with_derivatives = cost.withDerivatives();
@@ -426,7 +472,7 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
   // Ceres' cost is half the squared sum of the (transformed) residuals.
   const double after = 2.0 * summary.final_cost;
   if (usable && after <= report.loss_before) {
-    for (size_t k = 0; k < n; ++k) theta[static_cast<size_t>(indices[k])] = x[k];
+    for (size_t k = 0; k < n; ++k) theta[static_cast<size_t>(indices[k])] = x[k] * scales[k];
     report.loss_after = after;
   }
   report.termination =

@@ -207,10 +207,10 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
                           model.radiograph(0).levels[static_cast<size_t>(level)].width())
             : std::string("joint");
     if (stage.gauss_newton) {
-      runner.report(solveLeastSquares(model, theta, least_squares, every_radiograph, level,
-                                      stage.samples, stage.evaluations,
-                                      model.job().loss == LossKind::kMeanAbsolute,
-                                      JacobianKind::kRenderDerivatives, false, name));
+      runner.report(solveLeastSquares(
+          model, theta, least_squares, every_radiograph, level, stage.samples, stage.evaluations,
+          model.job().loss == LossKind::kMeanAbsolute, JacobianKind::kRenderDerivatives, false,
+          name, std::nullopt, kCoarseSettledSteps));
       continue;
     }
     StagePlan plan{name,          stage.method,      all, every_radiograph, level,

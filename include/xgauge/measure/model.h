@@ -211,10 +211,16 @@ class ForwardModel {
   // shot). The edges sampled 8 x 8 leave 1/16 of a coarse pixel; inside the
   // path is smooth and one sample per pixel does (measure_test: within 1e-6
   // of the exact blur, as with 4 x 4 and 16 x 16, at a fifth of the cost).
-  static RenderOptions scatterRenderOptions() {
+  // That is for the stages whose own edges are refined (setEdgeSamples: the
+  // final stage, the budget, the self-checks). Before them the image's own
+  // edge pixels are point samples, whose error dwarfs a quarter of a coarse
+  // pixel's, and the edges take 2 x 2: at the pose searches' 256 px, where
+  // the coarse render refines nearly every pixel of the part, 8 x 8 made
+  // the scatter cost nine times the image it is added to.
+  RenderOptions scatterRenderOptions() const {
     RenderOptions options;
     options.samples_per_axis = 1;
-    options.edge_samples_per_axis = 8;
+    options.edge_samples_per_axis = edge_samples_ > 0 ? 8 : 2;
     return options;
   }
   // n x n samples over `region`, the edges refined as setEdgeSamples says:

@@ -36,6 +36,12 @@ constexpr int kResolveIterations = 10;  // from theta, for an influence moved by
 constexpr int kResolveWidthPx = 1024;   // level of those re-solves (at least the fit's)
 constexpr int kChordIterations = 10;
 constexpr double kChordTolerance = 1e-3;
+// After kChordIterations, a shift whose last change is at most this share of
+// its largest component (both in linearisation steps) is taken: at a creep
+// that slows by a tenth per step, the rest of the way is about ten last
+// changes, a fifth of the shift at most (an uncertainty component's own
+// uncertainty), where leaving it out would drop it whole.
+constexpr double kChordCreep = 0.02;
 constexpr double kGeometricNullRatio = 1e-10;  // of the vertex velocities' scaled normal
                                                 // matrix: exact up to the vertex map's
                                                 // finite differences (about 1e-8 relative)
@@ -222,9 +228,10 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   //   with the distance changed, move it by 0.0001). These take the
   //   linearised step again from where the last one ended, with the fit's
   //   A and J held fixed and the moved model's residuals there (the chord
-  //   method), until a step is below a thousandth of the linearisation's
-  //   steps (2 to 4 steps, one render each), against the unmoved model
-  //   iterated in the same way from theta. On that pair and on a 4096^2
+  //   method), in lockstep with the unmoved model iterated in the same way
+  //   from theta, until the difference of their iterates changes by less
+  //   than a thousandth of the linearisation's steps (2 to 5 steps, one
+  //   render each, the unmoved model's shared by every influence). On that pair and on a 4096^2
   //   prism A pair the shifts agreed with ten-iteration Ceres re-solves at
   //   1024 px (about 200 renders each, what this did until now) to 0.0004
   //   mm per component on the prism B pair and 0.0015 mm on the prism A
@@ -267,54 +274,82 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   std::optional<bool> reference_solved;
   enum class Propagation { kLinearised, kIterated, kReSolved };
   // The chord method: from theta, steps -A^-1 J^T W r(x) with the fit's own
-  // A and J held fixed and the residuals r of `with` at each new x, until
-  // the steps are below kChordTolerance of the linearisation's steps (or
-  // kChordIterations). Its fixed point is where J^T W r = 0, as the fit's.
-  // Why it failed, or nullopt.
-  auto iterate = [&](ForwardModel& with, std::vector<double>& x) -> std::optional<std::string> {
-    x.assign(theta.begin(), theta.end());
+  // A and J held fixed and the residuals r of `with` at each new x. Its
+  // fixed point is where J^T W r = 0, as the fit's. The moved and the
+  // unmoved model take their steps in lockstep and the influence's shift is
+  // the difference of their iterates, done when it changes by less than
+  // kChordTolerance of the linearisation's steps (or kChordIterations): the
+  // iteration creeps along a weakly determined direction at the same pace
+  // for both (on a 1024^2 Prism B pair each iterate still moved by 0.002 of
+  // a step after ten, slowing by a tenth per step, where their difference
+  // had settled), so it is the difference that has to settle.
+  // One step of `with` from x; why it failed, or nullopt.
+  auto chordStep = [&](ForwardModel& with, std::vector<double>& x) -> std::optional<std::string> {
     std::vector<double> rx;
-    for (int it = 0; it < kChordIterations; ++it) {
-      if (!with.residuals(x, fit.level, samples, radiographs, rx) ||
-          rx.size() != static_cast<size_t>(m))
-        return "the radiographs could not be simulated on the way";
-      Eigen::VectorXd g =
-          jacobian.transpose() * w.cwiseProduct(Eigen::Map<const Eigen::VectorXd>(rx.data(), m));
-      if (fit.prior) {
-        const auto i = static_cast<size_t>(fit.indices[static_cast<size_t>(fit.prior->column)]);
-        g(fit.prior->column) += fit.prior->lambda * fit.prior->lambda * x[i];
+    if (!with.residuals(x, fit.level, samples, radiographs, rx) ||
+        rx.size() != static_cast<size_t>(m))
+      return "the radiographs could not be simulated on the way";
+    Eigen::VectorXd g =
+        jacobian.transpose() * w.cwiseProduct(Eigen::Map<const Eigen::VectorXd>(rx.data(), m));
+    if (fit.prior) {
+      const auto i = static_cast<size_t>(fit.indices[static_cast<size_t>(fit.prior->column)]);
+      g(fit.prior->column) += fit.prior->lambda * fit.prior->lambda * x[i];
+    }
+    const Eigen::VectorXd step = -(a_inverse * (project * g));
+    for (Eigen::Index k = 0; k < n; ++k)
+      x[static_cast<size_t>(fit.indices[static_cast<size_t>(k)])] += step(k);
+    return std::nullopt;
+  };
+  // The unmoved model's iterates, shared by every influence (unmoved[k]
+  // after k steps), and why the next one failed (set on failure).
+  std::vector<std::vector<double>> unmoved{std::vector<double>(theta.begin(), theta.end())};
+  std::optional<std::string> unmoved_failure;
+  // The shift of the parameters that `moved` causes; why it failed, or nullopt.
+  auto iterate = [&](ForwardModel& moved, Eigen::VectorXd& shift) -> std::optional<std::string> {
+    std::vector<double> x(theta.begin(), theta.end());
+    Eigen::VectorXd last = Eigen::VectorXd::Zero(n);
+    double change = 0.0;
+    for (int it = 1; it <= kChordIterations; ++it) {
+      if (static_cast<int>(unmoved.size()) <= it) {
+        if (unmoved_failure) return fmt::format("the unmoved fit: {}", *unmoved_failure);
+        std::vector<double> next = unmoved.back();
+        if (const auto failure = chordStep(model, next)) {
+          unmoved_failure = *failure;
+          return fmt::format("the unmoved fit: {}", *failure);
+        }
+        unmoved.push_back(std::move(next));
       }
-      const Eigen::VectorXd step = -(a_inverse * (project * g));
+      if (const auto failure = chordStep(moved, x)) return failure;
       double largest = 0.0;
       for (Eigen::Index k = 0; k < n; ++k) {
-        x[static_cast<size_t>(fit.indices[static_cast<size_t>(k)])] += step(k);
-        largest = std::max(largest, std::abs(step(k)) / fit.steps[static_cast<size_t>(k)]);
+        const auto i = static_cast<size_t>(fit.indices[static_cast<size_t>(k)]);
+        shift(k) = x[i] - unmoved[static_cast<size_t>(it)][i];
+        largest =
+            std::max(largest, std::abs(shift(k) - last(k)) / fit.steps[static_cast<size_t>(k)]);
       }
-      spdlog::debug("uncertainty: chord step {}: {:.3g} of the linearisation's steps", it, largest);
+      last = shift;
+      change = largest;
+      spdlog::debug(
+          "uncertainty: chord step {}: the shift changed by {:.3g} of the linearisation's steps",
+          it, largest);
       if (largest < kChordTolerance) return std::nullopt;
     }
-    return fmt::format("its steps did not settle in {} iterations", kChordIterations);
+    // Still creeping, but by a small share of the shift itself (kChordCreep).
+    double size = 0.0;
+    for (Eigen::Index k = 0; k < n; ++k)
+      size = std::max(size, std::abs(shift(k)) / fit.steps[static_cast<size_t>(k)]);
+    if (change <= kChordCreep * size) return std::nullopt;
+    return fmt::format("its shift did not settle in {} iterations", kChordIterations);
   };
-  std::vector<double> iterated_reference;
-  std::optional<std::optional<std::string>> reference_failure;  // set on the first use
   auto propagateInfluence = [&](ForwardModel& moved, Influence influence, Propagation how) {
     const auto influence_start = std::chrono::steady_clock::now();
     Eigen::VectorXd shift(n);
     if (how == Propagation::kIterated) {
-      if (!reference_failure) reference_failure = iterate(model, iterated_reference);
-      std::vector<double> x;
-      const std::optional<std::string> failure =
-          *reference_failure ? fmt::format("the unmoved fit: {}", **reference_failure)
-                             : iterate(moved, x);
-      if (failure) {
+      if (const auto failure = iterate(moved, shift)) {
         budget.notes.push_back(
             fmt::format("{}: the fit's linearised steps with it moved by u failed ({}); left out",
                         influence.name, *failure));
         return;
-      }
-      for (Eigen::Index k = 0; k < n; ++k) {
-        const auto i = static_cast<size_t>(fit.indices[static_cast<size_t>(k)]);
-        shift(k) = x[i] - iterated_reference[i];
       }
     } else if (how == Propagation::kLinearised) {
       std::vector<double> moved_r;

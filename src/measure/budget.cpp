@@ -231,11 +231,12 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   //   method), in lockstep with the unmoved model iterated in the same way
   //   from theta, until the difference of their iterates changes by less
   //   than a thousandth of the linearisation's steps (2 to 5 steps, one
-  //   render each, the unmoved model's shared by every influence). On that pair and on a 4096^2
-  //   prism A pair the shifts agreed with ten-iteration Ceres re-solves at
-  //   1024 px (about 200 renders each, what this did until now) to 0.0004
-  //   mm per component on the prism B pair and 0.0015 mm on the prism A
-  //   pair, against U of 0.0005 to 0.4 mm; every U the same to 0.0002 mm.
+  //   render each, the unmoved model's shared by every influence). On that
+  //   pair and on a 4096^2 prism A pair the shifts agreed with ten-iteration
+  //   Ceres re-solves at 1024 px (about 200 renders each, what this did
+  //   until now) to 0.0004 mm per component on the prism B pair and 0.0015
+  //   mm on the prism A pair, against U of 0.0005 to 0.4 mm; every U the
+  //   same to 0.0002 mm.
   //   The detector lag, where its signal is not kept on the fit's level, is
   //   still solved again (Ceres, as the final stage) on the level about 1024
   //   pixels wide, against the unmoved model solved there from the same

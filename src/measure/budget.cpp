@@ -284,14 +284,17 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   // for both (on a 1024^2 Prism B pair each iterate still moved by 0.002 of
   // a step after ten, slowing by a tenth per step, where their difference
   // had settled), so it is the difference that has to settle.
-  // One step of `with` from x; why it failed, or nullopt.
-  auto chordStep = [&](ForwardModel& with, std::vector<double>& x) -> std::optional<std::string> {
+  // One step of `with` from x; why it failed, or nullopt. The unmoved
+  // model's residuals at theta are the fit's own (`at_theta`): not rendered
+  // again.
+  auto chordStep = [&](ForwardModel& with, std::vector<double>& x,
+                       const Eigen::VectorXd* at_theta = nullptr) -> std::optional<std::string> {
     std::vector<double> rx;
-    if (!with.residuals(x, fit.level, samples, radiographs, rx) ||
-        rx.size() != static_cast<size_t>(m))
+    if (!at_theta && (!with.residuals(x, fit.level, samples, radiographs, rx) ||
+                      rx.size() != static_cast<size_t>(m)))
       return "the radiographs could not be simulated on the way";
-    Eigen::VectorXd g =
-        jacobian.transpose() * w.cwiseProduct(Eigen::Map<const Eigen::VectorXd>(rx.data(), m));
+    const Eigen::Map<const Eigen::VectorXd> residuals(at_theta ? at_theta->data() : rx.data(), m);
+    Eigen::VectorXd g = jacobian.transpose() * w.cwiseProduct(residuals);
     if (fit.prior) {
       const auto i = static_cast<size_t>(fit.indices[static_cast<size_t>(fit.prior->column)]);
       g(fit.prior->column) += fit.prior->lambda * fit.prior->lambda * x[i];
@@ -314,7 +317,7 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
       if (static_cast<int>(unmoved.size()) <= it) {
         if (unmoved_failure) return fmt::format("the unmoved fit: {}", *unmoved_failure);
         std::vector<double> next = unmoved.back();
-        if (const auto failure = chordStep(model, next)) {
+        if (const auto failure = chordStep(model, next, unmoved.size() == 1 ? &r : nullptr)) {
           unmoved_failure = *failure;
           return fmt::format("the unmoved fit: {}", *failure);
         }

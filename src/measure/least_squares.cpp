@@ -459,7 +459,8 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);
   if (progress) progress->finish();
-  spdlog::debug("{}: {}", report.name, summary.FullReport());
+  if (spdlog::should_log(spdlog::level::debug))
+    spdlog::debug("{}: {}", report.name, summary.FullReport());
 
   report.evaluations += cost.evaluations();
   report.with_derivatives = cost.withDerivatives();

@@ -274,9 +274,8 @@ Eigen::VectorXd LinearizedFit::weights() const {
   return w;
 }
 
-std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<const double> theta,
-                                              std::span<const int> radiographs, int level,
-                                              int samples, bool robust) {
+std::vector<ResidualSegment> residualLayout(const ForwardModel& model,
+                                            std::span<const int> radiographs, int level) {
   std::vector<ResidualSegment> segments;
   size_t first = 0;
   for (int r : radiographs) {
@@ -284,11 +283,30 @@ std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<con
     segments.push_back({r, roi, first, std::numeric_limits<double>::infinity()});
     first += static_cast<size_t>(roi.area());
   }
+  return segments;
+}
+
+std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<const double> theta,
+                                              std::span<const int> radiographs, int level,
+                                              int samples, bool robust) {
+  std::vector<ResidualSegment> segments = residualLayout(model, radiographs, level);
   if (!robust && model.rateScaleIndex() < 0) return segments;
-  for (ResidualSegment& segment : segments) {
-    std::vector<double> r;
-    const int only[] = {segment.radiograph};
-    if (!model.residuals(theta, level, samples, only, r) || r.empty()) continue;
+  std::vector<double> r;
+  if (model.residuals(theta, level, samples, radiographs, r)) scaleSegments(segments, r, robust);
+  return segments;
+}
+
+void scaleSegments(std::vector<ResidualSegment>& segments, std::span<const double> residuals,
+                   bool robust) {
+  if (segments.empty() ||
+      residuals.size() != segments.back().first + static_cast<size_t>(segments.back().roi.area()))
+    return;
+  for (size_t s = 0; s < segments.size(); ++s) {
+    ResidualSegment& segment = segments[s];
+    const size_t end = s + 1 < segments.size() ? segments[s + 1].first : residuals.size();
+    if (end <= segment.first) continue;
+    std::vector<double> r(residuals.begin() + static_cast<ptrdiff_t>(segment.first),
+                          residuals.begin() + static_cast<ptrdiff_t>(end));
     for (double& v : r) v = std::abs(v);
     std::nth_element(r.begin(), r.begin() + static_cast<ptrdiff_t>(r.size() / 2), r.end());
     // The residuals are scaled by 1 / sqrt(pixels) (ForwardModel::residuals).
@@ -298,9 +316,8 @@ std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<con
     const double unscale = std::sqrt(static_cast<double>(segment.roi.area()));
     const double sigma = std::max(1.4826 * r[r.size() / 2] * unscale, kNoiseFloor);
     segment.scale = sigma / unscale;
-    if (robust) segment.threshold = 1.345 * segment.scale;
+    segment.threshold = robust ? 1.345 * segment.scale : std::numeric_limits<double>::infinity();
   }
-  return segments;
 }
 
 std::optional<RateScalePrior> rateScalePrior(const ForwardModel& model,
@@ -321,39 +338,66 @@ std::optional<RateScalePrior> rateScalePrior(const ForwardModel& model,
 }
 
 bool linearize(ForwardModel& model, std::span<const double> theta, const std::vector<int>& indices,
-               std::vector<ResidualSegment> segments, int level, int samples, LinearizedFit& out) {
+               std::vector<ResidualSegment> segments, int level, int samples, LinearizedFit& out,
+               bool robust) {
   std::vector<int> radiographs;
   for (const ResidualSegment& s : segments) radiographs.push_back(s.radiograph);
+  std::vector<double> r;
+  if (!model.residuals(theta, level, samples, radiographs, r)) return false;
+  if (robust || model.rateScaleIndex() >= 0) scaleSegments(segments, r, robust);
   out.indices = indices;
   out.prior = rateScalePrior(model, indices, segments);
   out.segments = std::move(segments);
   out.level = level, out.samples = samples;
-  std::vector<double> r, shifted_r;
-  if (!model.residuals(theta, level, samples, radiographs, r)) return false;
   const auto m = static_cast<Eigen::Index>(r.size());
   out.residuals = Eigen::Map<const Eigen::VectorXd>(r.data(), m);
-  out.jacobian.resize(m, static_cast<Eigen::Index>(indices.size()));
-  std::vector<double> shifted(theta.begin(), theta.end()), back_r;
+  out.jacobian.setZero(m, static_cast<Eigen::Index>(indices.size()));
+  // The segments (positions in `radiographs`) each column changes: a
+  // parameter that moves no vertex of a radiograph's part (another
+  // radiograph's pose) leaves its image as it is, to the bit. The material
+  // changes every one.
+  std::vector<std::vector<size_t>> seen(indices.size());
+  for (size_t s = 0; s < radiographs.size(); ++s) {
+    std::vector<int> moving;
+    std::vector<Vec3> velocities;
+    const bool known = model.poseVelocities(theta, indices, radiographs[s], moving, velocities);
+    for (size_t k = 0; k < indices.size(); ++k)
+      if (!known || model.kind(indices[k]) == ParameterKind::kMaterial ||
+          std::find(moving.begin(), moving.end(), static_cast<int>(k)) != moving.end())
+        seen[k].push_back(s);
+  }
+  std::vector<double> shifted(theta.begin(), theta.end()), up_r, down_r;
   const std::vector<double> steps = linearSteps(model, theta, indices, level);
   out.steps = steps;
   for (size_t k = 0; k < indices.size(); ++k) {
+    if (seen[k].empty()) continue;
+    std::vector<int> changed;
+    for (size_t s : seen[k]) changed.push_back(radiographs[s]);
     const auto i = static_cast<size_t>(indices[k]);
     const double h = steps[k];
     const bool up = theta[i] + h <= model.upper()[i];
     const bool down = theta[i] - h >= model.lower()[i];
-    shifted[i] = theta[i] + (up ? h : 0.0);
-    bool ok = model.residuals(shifted, level, samples, radiographs, shifted_r) &&
-              shifted_r.size() == r.size();
-    shifted[i] = theta[i] - (down ? h : 0.0);
-    ok = ok && model.residuals(shifted, level, samples, radiographs, back_r) &&
-         back_r.size() == r.size();
-    shifted[i] = theta[i];
-    if (!ok) return false;
     const double span = (up ? h : 0.0) + (down ? h : 0.0);
     if (!(span > 0.0)) return false;
-    for (Eigen::Index j = 0; j < m; ++j)
-      out.jacobian(j, static_cast<Eigen::Index>(k)) =
-          (shifted_r[static_cast<size_t>(j)] - back_r[static_cast<size_t>(j)]) / span;
+    shifted[i] = theta[i] + (up ? h : 0.0);
+    bool ok = model.residuals(shifted, level, samples, changed, up_r);
+    shifted[i] = theta[i] - (down ? h : 0.0);
+    ok = ok && model.residuals(shifted, level, samples, changed, down_r) &&
+         down_r.size() == up_r.size();
+    shifted[i] = theta[i];
+    if (!ok) return false;
+    // Each changed segment's rows, in the order model.residuals returns them.
+    size_t from = 0;
+    for (size_t s : seen[k]) {
+      const ResidualSegment& segment = out.segments[s];
+      const auto rows = static_cast<size_t>(segment.roi.area());
+      if (from + rows > up_r.size()) return false;
+      for (size_t j = 0; j < rows; ++j)
+        out.jacobian(static_cast<Eigen::Index>(segment.first + j), static_cast<Eigen::Index>(k)) =
+            (up_r[from + j] - down_r[from + j]) / span;
+      from += rows;
+    }
+    if (from != up_r.size()) return false;
   }
   return true;
 }
@@ -374,12 +418,13 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
     report.termination = "start point invalid";
     return report;
   }
-  const std::vector<ResidualSegment> segments =
-      residualSegments(model, theta, radiographs, level, samples, robust);
+  // Their scales from the residuals just rendered (residualSegments would
+  // render them again).
+  std::vector<ResidualSegment> segments = residualLayout(model, radiographs, level);
+  if (robust || model.rateScaleIndex() >= 0) scaleSegments(segments, r, robust);
   std::optional<RateScalePrior> prior = rateScalePrior(model, indices, segments);
   if (prior && prior_lambda) prior->lambda = *prior_lambda;
-  report.evaluations =
-      1 + (robust || model.rateScaleIndex() >= 0 ? static_cast<int>(radiographs.size()) : 0);
+  report.evaluations = 1;
 
   // The solver's variables are the parameters in units of their
   // linearisation steps (a step moves the outline by about 0.2 pixels of the

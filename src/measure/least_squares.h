@@ -70,6 +70,13 @@ struct LinearizedFit {
 std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<const double> theta,
                                               std::span<const int> radiographs, int level,
                                               int samples, bool robust);
+// The segments' layout alone (thresholds +inf, scales 0), and their scales
+// and thresholds set as residualSegments does from residuals already in
+// hand (every segment's, in order; left as they are when the count differs).
+std::vector<ResidualSegment> residualLayout(const ForwardModel& model,
+                                            std::span<const int> radiographs, int level);
+void scaleSegments(std::vector<ResidualSegment>& segments, std::span<const double> residuals,
+                   bool robust);
 
 // The residuals at theta and their Jacobian by central differences
 // (one-sided at a bound), each parameter's step chosen so that the part's
@@ -87,8 +94,14 @@ std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<con
 // single face-on view of a box then made its width look undetermined). A
 // step of 0.2 pixels lets the strip cross samples. False where theta or a
 // step cannot be simulated.
+// A column whose parameter moves the part of only some radiographs (the
+// pose of a radiograph whose part no other pose places) renders those
+// alone; the others' rows are exactly zero, as their differences would be.
+// `robust`: the segments' scales and thresholds are set from the residuals
+// at theta (as residualSegments would, without rendering them again).
 bool linearize(ForwardModel& model, std::span<const double> theta, const std::vector<int>& indices,
-               std::vector<ResidualSegment> segments, int level, int samples, LinearizedFit& out);
+               std::vector<ResidualSegment> segments, int level, int samples, LinearizedFit& out,
+               bool robust = false);
 
 // Where a least-squares stage's Jacobian comes from: forward differences of
 // 2e-3 (mm or deg), one render per parameter, or the render with derivatives

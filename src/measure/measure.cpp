@@ -256,8 +256,7 @@ void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementRe
   const bool robust = model.job().loss == LossKind::kMeanAbsolute;
   LinearizedFit fit;
   if (!linearize(model, theta, model.leastSquaresIndices(),
-                 residualSegments(model, theta, every_radiograph, level, ls.samples, robust), level,
-                 ls.samples, fit)) {
+                 residualLayout(model, every_radiograph, level), level, ls.samples, fit, robust)) {
     result.check.warnings.push_back(
         "the solution lies so close to what cannot be simulated that its uncertainty could not "
         "be estimated");

@@ -456,7 +456,13 @@ void writeTiff(const std::filesystem::path& path, const Image& image, TiffFormat
     set(TIFFTAG_PHOTOMETRIC, PHOTOMETRIC_MINISBLACK);
     set(TIFFTAG_PLANARCONFIG, PLANARCONFIG_CONTIG);
     set(TIFFTAG_COMPRESSION, COMPRESSION_ADOBE_DEFLATE);
-    if (as_uint16) set(TIFFTAG_PREDICTOR, PREDICTOR_HORIZONTAL);
+    // Floats with the floating-point predictor (TIFF Technical Note 3, read
+    // by libtiff, GDAL, tifffile and Bio-Formats) and zlib's fastest level:
+    // a measurement's 4096^2 simulated radiograph took 25 MB and about a
+    // second to write without the predictor at the default level, 5.3 MB
+    // and a third of that with both.
+    set(TIFFTAG_PREDICTOR, as_uint16 ? PREDICTOR_HORIZONTAL : PREDICTOR_FLOATINGPOINT);
+    set(TIFFTAG_ZIPQUALITY, 1);
     set(TIFFTAG_ROWSPERSTRIP, rows_per_strip);
     set(TIFFTAG_SOFTWARE, "xgauge");
 

@@ -11,6 +11,11 @@
 #include "xgauge/version.h"
 #include "xgauge/xray/machine.h"
 
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <utility>
+
 namespace xgauge {
 
 namespace {
@@ -270,7 +275,13 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
                              const std::filesystem::path& folder, bool html_report,
                              const nlohmann::json& truth, std::vector<Image> simulated_full) {
   createOutputFolder(folder);
+  auto last = std::chrono::steady_clock::now();
+  const auto lap = [&last] {  // seconds since the last lap
+    const auto now = std::chrono::steady_clock::now();
+    return std::chrono::duration<double>(now - std::exchange(last, now)).count();
+  };
   if (simulated_full.empty()) simulated_full = simulateRadiographs(model, result.theta);
+  spdlog::debug("outputs: the radiographs simulated at full size in {:.2f} s", lap());
 
   // Final simulated radiographs and the differences over each roi.
   for (int r = 0; r < model.radiographCount(); ++r) {
@@ -283,6 +294,7 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
     writeTiff(folder / ("difference_" + name + ".tif"), difference, TiffFormat::kFloat32);
     writeDifferencePng(folder / ("difference_" + name + ".png"), difference);
   }
+  spdlog::debug("outputs: the images written in {:.2f} s", lap());
 
   const nlohmann::json json = measurementJson(model, result);
   if (html_report) {
@@ -295,6 +307,7 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
     writeReport(folder / "report.html", ReportKind::kMeasurement,
                 "xgauge measurement: " + model.job().file.filename().string(), data);
   }
+  spdlog::debug("outputs: the report written in {:.2f} s", lap());
   writeFileAtomically(folder / "result.json", json.dump(2) + "\n");
 }
 

@@ -4,11 +4,12 @@
 
 #include "xgauge/core/error.h"
 
-#include <algorithm>
-#include <limits>
+#include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
 #include <tbb/task_arena.h>
+#include <algorithm>
+#include <limits>
 
 namespace xgauge {
 
@@ -140,33 +141,45 @@ RefinedRuns bentPixels(const ImageT<T>& image, const PixelRect& wide, const Pixe
   const auto refined = [&](int u, int v) {
     return at(u, v) || at(u - 1, v) || at(u + 1, v) || at(u, v - 1) || at(u, v + 1);
   };
-  const int rw = region.width, rh = region.height;
-  std::vector<uint8_t> refine(static_cast<size_t>(rw) * static_cast<size_t>(rh), 0);
-  const PixelRect near = grown(footprint, 2).intersect(region);
-  tbb::parallel_for(near.y - region.y, near.bottom() - region.y, [&](int y) {
-    for (int x = near.x - region.x; x < near.right() - region.x; ++x)
-      refine[static_cast<size_t>(y) * static_cast<size_t>(rw) + static_cast<size_t>(x)] =
-          refined(region.x + x, region.y + y);
-  });
-  const auto runsAlong = [&](int count, size_t start, size_t stride, int first,
-                             std::vector<std::pair<int, int>>& out) {
-    for (int k = 0; k < count; ++k) {
-      if (!refine[start + static_cast<size_t>(k) * stride]) continue;
-      if (!out.empty() && out.back().second == first + k - 1) out.back().second = first + k;
-      else out.emplace_back(first + k, first + k);
-    }
-  };
   RefinedRuns runs{region, {}, {}};
-  runs.rows.resize(static_cast<size_t>(rh));
-  runs.columns.resize(static_cast<size_t>(rw));
-  tbb::parallel_for(0, rh, [&](int y) {
-    runsAlong(rw, static_cast<size_t>(y) * static_cast<size_t>(rw), 1, region.x,
-              runs.rows[static_cast<size_t>(y)]);
+  runs.rows.resize(static_cast<size_t>(region.height));
+  runs.columns.resize(static_cast<size_t>(region.width));
+  // Only `near` (the footprint and 2 pixels around it) holds refined pixels.
+  const PixelRect near = grown(footprint, 2).intersect(region);
+  if (near.empty()) return runs;
+  const int nw = near.width, nh = near.height;
+  std::vector<uint8_t> refine(static_cast<size_t>(nw) * static_cast<size_t>(nh), 0);
+  tbb::parallel_for(0, nh, [&](int y) {
+    for (int x = 0; x < nw; ++x)
+      refine[static_cast<size_t>(y) * static_cast<size_t>(nw) + static_cast<size_t>(x)] =
+          refined(near.x + x, near.y + y);
   });
-  tbb::parallel_for(0, rw, [&](int x) {
-    runsAlong(rh, static_cast<size_t>(x), static_cast<size_t>(rw), region.y,
-              runs.columns[static_cast<size_t>(x)]);
+  // Extends `out` by `pixel` (a column of a row, or a row of a column).
+  const auto extend = [](std::vector<std::pair<int, int>>& out, int pixel) {
+    if (!out.empty() && out.back().second == pixel - 1)
+      out.back().second = pixel;
+    else
+      out.emplace_back(pixel, pixel);
+  };
+  tbb::parallel_for(0, nh, [&](int y) {
+    const uint8_t* row = refine.data() + static_cast<size_t>(y) * static_cast<size_t>(nw);
+    auto& out = runs.rows[static_cast<size_t>(near.y - region.y + y)];
+    for (int x = 0; x < nw; ++x)
+      if (row[x]) extend(out, near.x + x);
   });
+  // The columns' runs a block of columns at a time, reading the rows in
+  // order (a walk down each column touched a cache line per pixel: a sixth
+  // of a refined 2048^2 render).
+  constexpr int kColumnBlock = 64;
+  tbb::parallel_for(
+      tbb::blocked_range<int>(0, nw, kColumnBlock), [&](const tbb::blocked_range<int>& columns) {
+        for (int y = 0; y < nh; ++y) {
+          const uint8_t* row = refine.data() + static_cast<size_t>(y) * static_cast<size_t>(nw);
+          for (int x = columns.begin(); x < columns.end(); ++x)
+            if (row[x])
+              extend(runs.columns[static_cast<size_t>(near.x - region.x + x)], near.y + y);
+        }
+      });
   return runs;
 }
 
@@ -274,9 +287,13 @@ void renderPixelsIsolated(const Machine& machine, const WorldMesh& mesh, const R
   thread_local SceneSetup scratch;
   SceneSetup& scene = scratch;
   setupMesh(machine, mesh, n, region, scene);
+  // Every pixel is written below (the background or the path's value): the
+  // images are only resized, not cleared (at 2048^2 the clearing cost a
+  // twentieth of a refined render).
   if (out.width() != region.width || out.height() != region.height)
     out.resize(region.width, region.height);
-  if (mean_path) mean_path->resize(region.width, region.height, 0.0);
+  if (mean_path && (mean_path->width() != region.width || mean_path->height() != region.height))
+    mean_path->resize(region.width, region.height, 0.0);
 
   const PixelRect footprint_px = raster::footprintPixels(scene, n);
   if (footprint) *footprint = footprint_px;

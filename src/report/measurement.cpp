@@ -12,6 +12,8 @@
 #include "xgauge/xray/machine.h"
 
 #include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_invoke.h>
 
 #include <chrono>
 #include <utility>
@@ -283,17 +285,24 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
   if (simulated_full.empty()) simulated_full = simulateRadiographs(model, result.theta);
   spdlog::debug("outputs: the radiographs simulated at full size in {:.2f} s", lap());
 
-  // Final simulated radiographs and the differences over each roi.
-  for (int r = 0; r < model.radiographCount(); ++r) {
+  // Final simulated radiographs and the differences over each roi: every
+  // file on its own (their encoders are single-threaded: a 4096^2 pair's
+  // six files took 2.6 to 3.5 s one after the other on 2 cores).
+  tbb::parallel_for(0, model.radiographCount(), [&](int r) {
     const PreparedRadiograph& rad = model.radiograph(r);
     const std::string& name = model.spec(r).name;
     const Image& simulated = simulated_full[static_cast<size_t>(r)];
-    writeTiff(folder / ("simulated_" + name + ".tif"), simulated, TiffFormat::kFloat32);
     const PixelRect roi = rad.rois.front();
     const Image difference = differenceImage(simulated.crop(roi), rad.levels.front(), roi);
-    writeTiff(folder / ("difference_" + name + ".tif"), difference, TiffFormat::kFloat32);
-    writeDifferencePng(folder / ("difference_" + name + ".png"), difference);
-  }
+    tbb::parallel_invoke(
+        [&] {
+          writeTiff(folder / ("simulated_" + name + ".tif"), simulated, TiffFormat::kFloat32);
+        },
+        [&] {
+          writeTiff(folder / ("difference_" + name + ".tif"), difference, TiffFormat::kFloat32);
+        },
+        [&] { writeDifferencePng(folder / ("difference_" + name + ".png"), difference); });
+  });
   spdlog::debug("outputs: the images written in {:.2f} s", lap());
 
   const nlohmann::json json = measurementJson(model, result);

@@ -274,8 +274,9 @@ Eigen::VectorXd LinearizedFit::weights() const {
   return w;
 }
 
-std::vector<ResidualSegment> residualLayout(const ForwardModel& model,
-                                            std::span<const int> radiographs, int level) {
+std::vector<ResidualSegment> residualSegments(const ForwardModel& model,
+                                              std::span<const int> radiographs, int level,
+                                              std::span<const double> residuals, bool robust) {
   std::vector<ResidualSegment> segments;
   size_t first = 0;
   for (int r : radiographs) {
@@ -283,24 +284,7 @@ std::vector<ResidualSegment> residualLayout(const ForwardModel& model,
     segments.push_back({r, roi, first, std::numeric_limits<double>::infinity()});
     first += static_cast<size_t>(roi.area());
   }
-  return segments;
-}
-
-std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<const double> theta,
-                                              std::span<const int> radiographs, int level,
-                                              int samples, bool robust) {
-  std::vector<ResidualSegment> segments = residualLayout(model, radiographs, level);
-  if (!robust && model.rateScaleIndex() < 0) return segments;
-  std::vector<double> r;
-  if (model.residuals(theta, level, samples, radiographs, r)) scaleSegments(segments, r, robust);
-  return segments;
-}
-
-void scaleSegments(std::vector<ResidualSegment>& segments, std::span<const double> residuals,
-                   bool robust) {
-  if (segments.empty() ||
-      residuals.size() != segments.back().first + static_cast<size_t>(segments.back().roi.area()))
-    return;
+  if ((!robust && model.rateScaleIndex() < 0) || residuals.size() != first) return segments;
   for (size_t s = 0; s < segments.size(); ++s) {
     ResidualSegment& segment = segments[s];
     const size_t end = s + 1 < segments.size() ? segments[s + 1].first : residuals.size();
@@ -316,8 +300,9 @@ void scaleSegments(std::vector<ResidualSegment>& segments, std::span<const doubl
     const double unscale = std::sqrt(static_cast<double>(segment.roi.area()));
     const double sigma = std::max(1.4826 * r[r.size() / 2] * unscale, kNoiseFloor);
     segment.scale = sigma / unscale;
-    segment.threshold = robust ? 1.345 * segment.scale : std::numeric_limits<double>::infinity();
+    if (robust) segment.threshold = 1.345 * segment.scale;
   }
+  return segments;
 }
 
 std::optional<RateScalePrior> rateScalePrior(const ForwardModel& model,
@@ -338,16 +323,13 @@ std::optional<RateScalePrior> rateScalePrior(const ForwardModel& model,
 }
 
 bool linearize(ForwardModel& model, std::span<const double> theta, const std::vector<int>& indices,
-               std::vector<ResidualSegment> segments, int level, int samples, LinearizedFit& out,
-               bool robust) {
-  std::vector<int> radiographs;
-  for (const ResidualSegment& s : segments) radiographs.push_back(s.radiograph);
+               std::span<const int> radiographs, int level, int samples, bool robust,
+               LinearizedFit& out) {
   std::vector<double> r;
   if (!model.residuals(theta, level, samples, radiographs, r)) return false;
-  if (robust || model.rateScaleIndex() >= 0) scaleSegments(segments, r, robust);
   out.indices = indices;
-  out.prior = rateScalePrior(model, indices, segments);
-  out.segments = std::move(segments);
+  out.segments = residualSegments(model, radiographs, level, r, robust);
+  out.prior = rateScalePrior(model, indices, out.segments);
   out.level = level, out.samples = samples;
   const auto m = static_cast<Eigen::Index>(r.size());
   out.residuals = Eigen::Map<const Eigen::VectorXd>(r.data(), m);
@@ -418,10 +400,8 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
     report.termination = "start point invalid";
     return report;
   }
-  // Their scales from the residuals just rendered (residualSegments would
-  // render them again).
-  std::vector<ResidualSegment> segments = residualLayout(model, radiographs, level);
-  if (robust || model.rateScaleIndex() >= 0) scaleSegments(segments, r, robust);
+  const std::vector<ResidualSegment> segments =
+      residualSegments(model, radiographs, level, r, robust);
   std::optional<RateScalePrior> prior = rateScalePrior(model, indices, segments);
   if (prior && prior_lambda) prior->lambda = *prior_lambda;
   report.evaluations = 1;

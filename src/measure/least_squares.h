@@ -59,24 +59,19 @@ struct LinearizedFit {
   Eigen::VectorXd weights() const;
 };
 
-// The segments and thresholds of the radiographs at `level`: `robust` sets
-// each threshold to 1.345 robust sigmas (1.4826 * median |r|) of the
-// residuals at theta (at least 1e-4 in intensity, so that a noise-free
-// simulation is fitted by plain least squares), the usual 95 %-efficient
-// choice for Gaussian noise (Huber 1981), which keeps a dust speck or a
-// defect from pulling the fit. The robust sigma is the segment's scale,
-// estimated when `robust` or when the model refines the material (its
-// prior is weighed by it).
-std::vector<ResidualSegment> residualSegments(ForwardModel& model, std::span<const double> theta,
+// The segments and thresholds of the radiographs at `level`, from
+// `residuals`, theirs at theta (ForwardModel::residuals over `radiographs`):
+// `robust` sets each threshold to 1.345 robust sigmas (1.4826 * median |r|)
+// of them (at least 1e-4 in intensity, so that a noise-free simulation is
+// fitted by plain least squares), the usual 95 %-efficient choice for
+// Gaussian noise (Huber 1981), which keeps a dust speck or a defect from
+// pulling the fit. The robust sigma is the segment's scale, estimated when
+// `robust` or when the model refines the material (its prior is weighed by
+// it), and left at 0 (the thresholds at +inf) when `residuals` do not
+// cover the segments.
+std::vector<ResidualSegment> residualSegments(const ForwardModel& model,
                                               std::span<const int> radiographs, int level,
-                                              int samples, bool robust);
-// The segments' layout alone (thresholds +inf, scales 0), and their scales
-// and thresholds set as residualSegments does from residuals already in
-// hand (every segment's, in order; left as they are when the count differs).
-std::vector<ResidualSegment> residualLayout(const ForwardModel& model,
-                                            std::span<const int> radiographs, int level);
-void scaleSegments(std::vector<ResidualSegment>& segments, std::span<const double> residuals,
-                   bool robust);
+                                              std::span<const double> residuals, bool robust);
 
 // The residuals at theta and their Jacobian by central differences
 // (one-sided at a bound), each parameter's step chosen so that the part's
@@ -97,11 +92,10 @@ void scaleSegments(std::vector<ResidualSegment>& segments, std::span<const doubl
 // A column whose parameter moves the part of only some radiographs (the
 // pose of a radiograph whose part no other pose places) renders those
 // alone; the others' rows are exactly zero, as their differences would be.
-// `robust`: the segments' scales and thresholds are set from the residuals
-// at theta (as residualSegments would, without rendering them again).
+// The segments' thresholds are residualSegments' at theta (`robust`).
 bool linearize(ForwardModel& model, std::span<const double> theta, const std::vector<int>& indices,
-               std::vector<ResidualSegment> segments, int level, int samples, LinearizedFit& out,
-               bool robust = false);
+               std::span<const int> radiographs, int level, int samples, bool robust,
+               LinearizedFit& out);
 
 // Where a least-squares stage's Jacobian comes from: forward differences of
 // 2e-3 (mm or deg), one render per parameter, or the render with derivatives

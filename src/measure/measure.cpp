@@ -255,8 +255,8 @@ void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementRe
   for (int r = 0; r < model.radiographCount(); ++r) every_radiograph.push_back(r);
   const bool robust = model.job().loss == LossKind::kMeanAbsolute;
   LinearizedFit fit;
-  if (!linearize(model, theta, model.leastSquaresIndices(),
-                 residualLayout(model, every_radiograph, level), level, ls.samples, fit, robust)) {
+  if (!linearize(model, theta, model.leastSquaresIndices(), every_radiograph, level, ls.samples,
+                 robust, fit)) {
     result.check.warnings.push_back(
         "the solution lies so close to what cannot be simulated that its uncertainty could not "
         "be estimated");

@@ -200,8 +200,9 @@ int main(int argc, char** argv) {
     // One evaluation of both radiographs' residuals at the final stage's
     // level, without and with the derivatives of every joint parameter.
     ForwardModel model(*first_inputs);
-    const LeastSquaresStage& ls = scheduleFor(ScheduleKind::kDefault).least_squares;
-    const int level = model.levelForWidth(ls.min_width_px);
+    const Schedule& schedule = scheduleFor(ScheduleKind::kDefault);
+    const LeastSquaresStage& ls = schedule.least_squares;
+    const int level = leastSquaresLevel(model, schedule);
     const std::vector<int> both{0, 1};
     const std::vector<int> joint = model.jointIndices();
     std::vector<double> r, j;

@@ -45,7 +45,10 @@ Schedule wedgeSchedule() {
   // tens of minutes.
   s.joint = {{Method::kBobyqa, 512, 2, 1200, 1.0, 10.0},
              {Method::kBobyqa, 1024, 2, 400, 0.3, 10.0}};
-  s.least_squares = {true, 1024, 2, 30};
+  s.least_squares.enabled = true;
+  s.least_squares.min_width_px = 1024;
+  s.least_squares.samples = 2;
+  s.least_squares.max_iterations = 30;
   return s;
 }
 

@@ -250,14 +250,29 @@ class PriorResidual final : public ceres::CostFunction {
   int n_;
 };
 
-// Logs each iteration of a stage (at debug level).
+// Logs each iteration of a stage (at debug level), and ends the stage at a
+// rejected step shorter than kRejectedSettled times its settled steps: the
+// loss rose over a step that small because the float image cannot resolve
+// it, not because the model bends there. Levenberg-Marquardt would shrink
+// its trust region from a radius far larger than the step, so the next few
+// steps come out nearly the same and are rejected too, a render each
+// (measured: five in a row at the end of a 4096^2 pair's final stage).
+// Ceres keeps the last accepted point.
+constexpr double kRejectedSettled = 5.0;
 class IterationLog final : public ceres::IterationCallback {
  public:
+  explicit IterationLog(double settled_steps) : settled_steps_(settled_steps) {}
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
     spdlog::debug("  iteration {}: loss {:.9g}, step {:.3g} linearisation steps, {}", s.iteration,
                   2.0 * s.cost, s.step_norm, s.step_is_successful ? "taken" : "rejected");
+    if (s.iteration > 0 && !s.step_is_successful &&
+        s.step_norm < kRejectedSettled * settled_steps_)
+      return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
     return ceres::SOLVER_CONTINUE;
   }
+
+ private:
+  double settled_steps_;
 };
 
 }  // namespace
@@ -479,7 +494,7 @@ StageReport solveLeastSquares(ForwardModel& model, std::vector<double>& theta,
   options.num_threads = 1;  // one residual block; the renderer is parallel itself
   options.logging_type = ceres::SILENT;
   options.minimizer_progress_to_stdout = false;
-  IterationLog log;
+  IterationLog log(settled_steps);
   options.callbacks.push_back(&log);
   ceres::Solver::Summary summary;
   ceres::Solve(options, &problem, &summary);

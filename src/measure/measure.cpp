@@ -231,7 +231,7 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     runner.run(plan);
   }
   const LeastSquaresStage ls = leastSquaresStage(model, schedule);
-  const int ls_level = model.levelForWidth(ls.min_width_px);
+  const int ls_level = leastSquaresLevel(model, schedule);
   if (ls.enabled) {
     // From here on (this stage, the budget and the self-checks) the pixels
     // on edges are sampled finer (schedule.h, LeastSquaresStage::edge_samples).
@@ -249,8 +249,9 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
 // Jacobian at the solution, on the least-squares stage's level.
 void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementResult& result) {
   const auto start = std::chrono::steady_clock::now();
-  const LeastSquaresStage ls = leastSquaresStage(model, scheduleFor(model.job().schedule));
-  const int level = model.levelForWidth(ls.min_width_px);
+  const Schedule& schedule = scheduleFor(model.job().schedule);
+  const LeastSquaresStage ls = leastSquaresStage(model, schedule);
+  const int level = leastSquaresLevel(model, schedule);
   std::vector<int> every_radiograph;
   for (int r = 0; r < model.radiographCount(); ++r) every_radiograph.push_back(r);
   const bool robust = model.job().loss == LossKind::kMeanAbsolute;

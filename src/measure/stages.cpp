@@ -4,6 +4,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -116,8 +117,29 @@ Vec2 shadowCentroid(const PreparedRadiograph& r, int level) {
   return {su / sw * s, sv / sw * s};
 }
 
+namespace {
+constexpr int kLineDetectorRows = 8;
+}  // namespace
+
+int leastSquaresLevel(const ForwardModel& model, const Schedule& schedule) {
+  const LeastSquaresStage& ls = schedule.least_squares;
+  int level = model.levelForWidth(ls.min_width_px);
+  const auto narrowest = [&](int l) {
+    int side = std::numeric_limits<int>::max();
+    for (int r = 0; r < model.radiographCount(); ++r) {
+      const PixelRect& roi = model.radiograph(r).rois[static_cast<size_t>(l)];
+      side = std::min(side, std::min(roi.width, roi.height));
+    }
+    return side;
+  };
+  while (level > 0 &&
+         model.radiograph(0).levels[static_cast<size_t>(level)].height() >= kLineDetectorRows &&
+         narrowest(level) < ls.min_roi_px)
+    --level;
+  return level;
+}
+
 bool onLineDetector(const ForwardModel& model, const Schedule& schedule) {
-  constexpr int kLineDetectorRows = 8;
   return model.radiograph(0)
              .levels[static_cast<size_t>(model.levelForWidth(schedule.least_squares.min_width_px))]
              .height() < kLineDetectorRows;

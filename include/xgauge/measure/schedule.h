@@ -53,6 +53,8 @@
 
 namespace xgauge {
 
+class ForwardModel;
+
 // A local or global stage over one radiograph's pose.
 struct PoseStage {
   Method method = Method::kBobyqa;
@@ -115,7 +117,12 @@ struct JointStage {
 
 struct LeastSquaresStage {
   bool enabled = false;
+  // The stage's level (measure/stages.h, leastSquaresLevel): the coarsest
+  // at least min_width_px wide, and finer while some radiograph's region of
+  // interest is narrower than min_roi_px on its shorter side there (a small
+  // shadow on a large detector keeps its pixels; 2-D detectors only).
   int min_width_px = 2048;
+  int min_roi_px = 0;
   int samples = 2;
   int max_iterations = 30;
   // The Jacobian from the render with derivatives (else forward differences).
@@ -141,6 +148,11 @@ struct Schedule {
 
 // The tables described at the top of this file.
 const Schedule& scheduleFor(ScheduleKind kind);
+
+// The pyramid level of the schedule's least-squares stage for this model,
+// of the budget and of the self-checks after it (LeastSquaresStage::
+// min_width_px and min_roi_px).
+int leastSquaresLevel(const ForwardModel& model, const Schedule& schedule);
 // "default", "bobyqa", "gauss-newton", "thesis".
 std::string_view scheduleName(ScheduleKind kind);
 // Inverse of scheduleName; nullopt for an unknown name.

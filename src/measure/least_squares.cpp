@@ -265,8 +265,7 @@ class IterationLog final : public ceres::IterationCallback {
   ceres::CallbackReturnType operator()(const ceres::IterationSummary& s) override {
     spdlog::debug("  iteration {}: loss {:.9g}, step {:.3g} linearisation steps, {}", s.iteration,
                   2.0 * s.cost, s.step_norm, s.step_is_successful ? "taken" : "rejected");
-    if (s.iteration > 0 && !s.step_is_successful &&
-        s.step_norm < kRejectedSettled * settled_steps_)
+    if (s.iteration > 0 && !s.step_is_successful && s.step_norm < kRejectedSettled * settled_steps_)
       return ceres::SOLVER_TERMINATE_SUCCESSFULLY;
     return ceres::SOLVER_CONTINUE;
   }

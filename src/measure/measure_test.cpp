@@ -399,6 +399,34 @@ MeasurementInputs cuboidInputs(const fs::path& dir, const std::string& pose_boun
   return loadMeasurementInputs(dir / "job.json");
 }
 
+// The final stage's level follows the part's shadow, not the detector alone:
+// on a 2048^2 detector the default fits at 1024 px when the roi keeps 128
+// px or more across there, and at full size when it would not; the bobyqa
+// schedule stays at 2048 px.
+TEST_F(Measure, TheFinalStagesLevelKeepsASmallShadowsPixels) {
+  Machine machine;
+  machine.columns = machine.rows = 2048;
+  machine.pitch_u_mm = machine.pitch_v_mm = 0.1;
+  machine.cx_px = machine.cy_px = 1024.0;
+  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+  std::ofstream(dir_ / "material.json") << ExponentialSum({{1.0, 0.05}}).toJson().dump();
+  writeTiff(dir_ / "a.tif", Image(2048, 2048, 1.0f), TiffFormat::kFloat32);
+  const auto levelFor = [&](const std::string& roi, ScheduleKind kind) {
+    std::ofstream(dir_ / "job.json") << R"({"part": ")" + kRoot + R"(/parts/cuboid.json",
+      "machine": "machine.json", "material": "material.json",
+      "radiographs": [{"name": "a", "image": "a.tif", "white_region": [0, 0, 64, 64], "roi": )" +
+                                            roi + R"(}],
+      "pose_bounds": {"rotation_deg": [[-5, 5], [-5, 5], [-5, 5]],
+                      "centre_mm": [[-9, 9], [-9, 9], [390, 410]]}})";
+    const MeasurementInputs inputs = loadMeasurementInputs(dir_ / "job.json");
+    const ForwardModel model(inputs);
+    return leastSquaresLevel(model, scheduleFor(kind));
+  };
+  EXPECT_EQ(levelFor("[700, 600, 600, 900]", ScheduleKind::kDefault), 1);  // 300 px across
+  EXPECT_EQ(levelFor("[900, 900, 240, 900]", ScheduleKind::kDefault), 0);  // 120 px there
+  EXPECT_EQ(levelFor("[700, 600, 600, 900]", ScheduleKind::kBobyqa), 0);
+}
+
 TEST_F(Measure, ParametersAreNamedByBlock) {
   const MeasurementInputs inputs = cuboidInputs(
       dir_,

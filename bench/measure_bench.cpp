@@ -67,12 +67,17 @@ Run measureShots(const nlohmann::json& settings, const DatasetTruth& truth,
   MeasurementInputs run_inputs = studyRunInputs(job, inputs, settings_file, prepared);
   const auto start = std::chrono::steady_clock::now();
   ForwardModel model(run_inputs);
-  const MeasurementResult result = measure(model, model.start());
+  // As `xgauge measure` runs it: the full-size losses come with the outputs.
+  MeasureOptions options;
+  options.full_size_losses = false;
+  MeasurementResult result = measure(model, model.start(), options);
   const double seconds =
       std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   if (!outputs.empty()) {
     const auto written = std::chrono::steady_clock::now();
-    writeMeasurementOutputs(model, result, outputs);
+    std::vector<Image> simulated = simulateRadiographs(model, result.theta);
+    takeFullSizeLosses(model, simulated, result);
+    writeMeasurementOutputs(model, result, outputs, true, nullptr, std::move(simulated));
     std::printf("writing its outputs (%s): %.2f s\n", outputs.c_str(),
                 std::chrono::duration<double>(std::chrono::steady_clock::now() - written).count());
   }

@@ -44,7 +44,12 @@ int runMeasure(const MeasureArguments& args) {
   sink->set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%l] %v");
   spdlog::default_logger()->sinks().push_back(sink);
   ForwardModel model(inputs);
-  const MeasurementResult result = measure(model, model.start());
+  // The full-size losses from the full-size simulation the outputs show.
+  MeasureOptions options;
+  options.full_size_losses = false;
+  MeasurementResult result = measure(model, model.start(), options);
+  std::vector<Image> simulated = simulateRadiographs(model, result.theta);
+  takeFullSizeLosses(model, simulated, result);
 
   bool toleranced = false;
   std::vector<Decision> decisions;
@@ -94,7 +99,8 @@ int runMeasure(const MeasureArguments& args) {
   nlohmann::json true_values = nullptr;
   if (truth)
     for (const auto& [name, value] : truth->dimensions) true_values[name] = value;
-  writeMeasurementOutputs(model, result, args.output, args.report, true_values);
+  writeMeasurementOutputs(model, result, args.output, args.report, true_values,
+                          std::move(simulated));
   spdlog::default_logger()->sinks().pop_back();
   writeFileAtomically(std::filesystem::path(args.output) / "measure.log", log.str() + table);
   outputs.commit();

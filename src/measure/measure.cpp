@@ -4,6 +4,7 @@
 #include "checks.h"
 #include "least_squares.h"
 #include "stages.h"
+#include "xgauge/loss/loss.h"
 #include "xgauge/measure/model.h"
 #include "xgauge/measure/schedule.h"
 
@@ -358,15 +359,33 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
   if (options.assess) assess(model, theta, result);
   decideConformity(model, result);
   for (int r = 0; r < model.radiographCount(); ++r) {
-    const int only[] = {r};
-    const double loss = model.loss(theta, 0, 2, only).value_or(kInf);
-    result.total_loss += loss;
+    double loss = std::numeric_limits<double>::quiet_NaN();
+    if (options.full_size_losses) {
+      const int only[] = {r};
+      loss = model.loss(theta, 0, 2, only).value_or(kInf);
+    }
     const RadiographSpec& spec = model.spec(r);
     result.radiographs.push_back(
         {spec.name, std::string(acquisitionName(spec.pattern)), model.pose(theta, r), loss});
+    result.total_loss += loss;
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
+}
+
+void takeFullSizeLosses(const ForwardModel& model, const std::vector<Image>& simulated_full,
+                        MeasurementResult& result) {
+  XG_CHECK(simulated_full.size() == result.radiographs.size(),
+           "one full-size simulation per radiograph");
+  result.total_loss = 0.0;
+  for (int r = 0; r < model.radiographCount(); ++r) {
+    const PreparedRadiograph& rad = model.radiograph(r);
+    const PixelRect roi = rad.rois.front();
+    const double loss = imageLoss(simulated_full[static_cast<size_t>(r)].crop(roi),
+                                  rad.levels.front(), roi, model.job().loss);
+    result.radiographs[static_cast<size_t>(r)].loss = loss;
+    result.total_loss += loss;
+  }
 }
 
 }  // namespace xgauge

@@ -134,7 +134,15 @@ MeasurementResult measureSelfRender(const fs::path& dir, const Machine& machine,
   const MeasurementInputs inputs = loadMeasurementInputs(dir / "job.json");
   ForwardModel model(inputs);
   MeasurementResult result = measure(model, model.start());
-  writeMeasurementOutputs(model, result, dir / "out");
+  // The losses from the full-size simulation (as `xgauge measure` takes
+  // them) are measure()'s own to the bit.
+  std::vector<Image> simulated = simulateRadiographs(model, result.theta);
+  MeasurementResult from_outputs = result;
+  takeFullSizeLosses(model, simulated, from_outputs);
+  for (size_t r = 0; r < result.radiographs.size(); ++r)
+    EXPECT_EQ(from_outputs.radiographs[r].loss, result.radiographs[r].loss);
+  EXPECT_EQ(from_outputs.total_loss, result.total_loss);
+  writeMeasurementOutputs(model, result, dir / "out", true, nullptr, std::move(simulated));
   return result;
 }
 

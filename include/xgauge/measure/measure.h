@@ -89,10 +89,22 @@ struct MeasureOptions {
   // The schedule to follow instead of the job's (a wedge calibration's
   // search over the in-plane turn and the depth); not owned.
   const Schedule* schedule = nullptr;
+  // false: leave each radiograph's loss at full size and the total to the
+  // caller's takeFullSizeLosses, from the full-size simulation it renders
+  // for its outputs anyway (`xgauge measure`: about 0.9 s of a 4096^2
+  // pair's measurement was these two renders).
+  bool full_size_losses = true;
 };
 // The same on a model built by the caller, from `theta` (model.start() for a
 // fresh measurement).
 MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
                           const MeasureOptions& options = {});
+
+// Each radiograph's loss at full size, and their total, from its simulation
+// over the whole detector at the solution (report/measurement.h,
+// simulateRadiographs): the same numbers measure() takes from renders of the
+// rois alone.
+void takeFullSizeLosses(const ForwardModel& model, const std::vector<Image>& simulated_full,
+                        MeasurementResult& result);
 
 }  // namespace xgauge

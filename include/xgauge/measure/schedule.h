@@ -23,7 +23,8 @@
 //            the render with derivatives (xray/derivatives.h) on levels about
 //            512 and 1024 px wide with 2 x 2 area samples; then least squares
 //            on the residuals (reweighted for the L1 loss) on the level about
-//            2048 px wide, of renders whose pixels on edges and silhouettes
+//            1024 px wide (finer where a shadow would be under 128 px across
+//            there), of renders whose pixels on edges and silhouettes
 //            are sampled 8 x 8 (there and in the uncertainty budget), its
 //            Jacobian from the same refined render with derivatives. The
 //            derivatives are those of the samples: a wall seen along the
@@ -36,8 +37,10 @@
 //            kept for comparison: the same pose steps, then the joint fit by
 //            BOBYQA on levels about 512, 1024 and 2048 px wide with 2 x 2
 //            area samples, each in a window of ten first steps around the
-//            estimate so far, then least squares as the default's, its
-//            Jacobian by forward differences of the refined renders.
+//            estimate so far, then least squares as the default's but on
+//            the level about 2048 px wide (the default's until it moved to
+//            1024), its Jacobian by forward differences of the refined
+//            renders.
 //   gauss-newton  the default with point samples alone in its least-squares
 //            stage and budget (no edge refinement): faster, but on Prism B
 //            at 1024^2 slot_depth's mean error doubled against a refined
@@ -117,7 +120,7 @@ struct JointStage {
 
 struct LeastSquaresStage {
   bool enabled = false;
-  // The stage's level (measure/stages.h, leastSquaresLevel): the coarsest
+  // The stage's level (leastSquaresLevel below): the coarsest
   // at least min_width_px wide, and finer while some radiograph's region of
   // interest is narrower than min_roi_px on its shorter side there (a small
   // shadow on a large detector keeps its pixels; 2-D detectors only).

@@ -88,6 +88,9 @@ class ForwardModel {
   // inputs' unless given (a calibration's current estimate).
   explicit ForwardModel(const MeasurementInputs& inputs);
   ForwardModel(const MeasurementInputs& inputs, const ExponentialSum& material);
+  // The model keeps a reference to its inputs: a temporary would dangle.
+  explicit ForwardModel(MeasurementInputs&&) = delete;
+  ForwardModel(MeasurementInputs&&, const ExponentialSum&) = delete;
 
   // The material the radiographs are simulated with (before a refinement's
   // rate scale); a calibration changes it.

@@ -410,7 +410,7 @@ MeasurementInputs cuboidInputs(const fs::path& dir, const std::string& pose_boun
 // The final stage's level follows the part's shadow, not the detector alone:
 // on a 2048^2 detector the default fits at 1024 px when the roi keeps 128
 // px or more across there, and at full size when it would not; the bobyqa
-// schedule stays at 2048 px.
+// schedule stays at 2048 px; a line detector's row stays at full size.
 TEST_F(Measure, TheFinalStagesLevelKeepsASmallShadowsPixels) {
   Machine machine;
   machine.columns = machine.rows = 2048;
@@ -433,6 +433,21 @@ TEST_F(Measure, TheFinalStagesLevelKeepsASmallShadowsPixels) {
   EXPECT_EQ(levelFor("[700, 600, 600, 900]", ScheduleKind::kDefault), 1);  // 300 px across
   EXPECT_EQ(levelFor("[900, 900, 240, 900]", ScheduleKind::kDefault), 0);  // 120 px there
   EXPECT_EQ(levelFor("[700, 600, 600, 900]", ScheduleKind::kBobyqa), 0);
+  // A row of 2048 pixels: full size, its only level.
+  machine.rows = 1;
+  machine.cy_px = 0.5;
+  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+  writeTiff(dir_ / "a.tif", Image(2048, 1, 1.0f), TiffFormat::kFloat32);
+  std::ofstream(dir_ / "job.json") << R"({"part": ")" + kRoot + R"(/parts/cuboid.json",
+    "machine": "machine.json", "material": "material.json",
+    "radiographs": [{"name": "a", "image": "a.tif", "white_region": [0, 0, 64, 1],
+                     "roi": [700, 0, 600, 1]}],
+    "pose_bounds": {"rotation_deg": [[-5, 5], [-5, 5], [-5, 5]],
+                    "centre_mm": [[-9, 9], [-9, 9], [390, 410]]}})";
+  const MeasurementInputs line_inputs = loadMeasurementInputs(dir_ / "job.json");
+  const ForwardModel line(line_inputs);
+  EXPECT_EQ(line.levels(), 1);
+  EXPECT_EQ(leastSquaresLevel(line, scheduleFor(ScheduleKind::kDefault)), 0);
 }
 
 TEST_F(Measure, ParametersAreNamedByBlock) {

@@ -132,10 +132,9 @@ int leastSquaresLevel(const ForwardModel& model, const Schedule& schedule) {
     }
     return side;
   };
-  while (level > 0 &&
-         model.radiograph(0).levels[static_cast<size_t>(level)].height() >= kLineDetectorRows &&
-         narrowest(level) < ls.min_roi_px)
-    --level;
+  // (A line detector's radiographs have one level: inputs.cpp builds levels
+  // while both sides keep 64 px.)
+  while (level > 0 && narrowest(level) < ls.min_roi_px) --level;
   return level;
 }
 

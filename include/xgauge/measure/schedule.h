@@ -123,7 +123,7 @@ struct LeastSquaresStage {
   // The stage's level (leastSquaresLevel below): the coarsest
   // at least min_width_px wide, and finer while some radiograph's region of
   // interest is narrower than min_roi_px on its shorter side there (a small
-  // shadow on a large detector keeps its pixels; 2-D detectors only).
+  // shadow on a large detector keeps its pixels).
   int min_width_px = 2048;
   int min_roi_px = 0;
   int samples = 2;

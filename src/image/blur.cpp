@@ -60,12 +60,24 @@ std::vector<float> floatTaps(const std::vector<double>& taps) {
   return out;
 }
 
+// reflect(i, n) for i in [-radius, n + radius), at i + radius: computed once
+// per pass (a 64-bit division per tap and row cost as much as the taps'
+// arithmetic on the 128 px scatter renders, whose kernels are wider than
+// they are).
+std::vector<int> reflectedIndices(int n, int radius) {
+  std::vector<int> out(static_cast<size_t>(n) + 2 * static_cast<size_t>(radius));
+  for (int i = -radius; i < n + radius; ++i) out[static_cast<size_t>(i + radius)] = reflect(i, n);
+  return out;
+}
+
 // out(x, y) = sum_k taps[k] in(x, reflect(y + k)), symmetric taps of odd size.
 // Column strips keep the 2 * radius + 1 input rows of a strip in cache.
 template <typename T>
 void convolveColumns(const ImageT<T>& in, ImageT<T>& out, std::span<const T> taps) {
   const int width = in.width(), height = in.height();
   const int radius = static_cast<int>(taps.size() / 2);
+  const std::vector<int> reflected = reflectedIndices(height, radius);
+  const auto row = [&](int y) { return in.row(reflected[static_cast<size_t>(y + radius)]); };
   constexpr int kStrip = 512;
   tbb::parallel_for(Rows(0, height, 16), [&](const Rows& rows) {
     for (int x0 = 0; x0 < width; x0 += kStrip) {
@@ -76,8 +88,8 @@ void convolveColumns(const ImageT<T>& in, ImageT<T>& out, std::span<const T> tap
         const T tap0 = taps[static_cast<size_t>(radius)];
         for (int x = x0; x < x1; ++x) o[x] = tap0 * centre[x];
         for (int k = 1; k <= radius; ++k) {
-          const T* above = in.row(reflect(y - k, height));
-          const T* below = in.row(reflect(y + k, height));
+          const T* above = row(y - k);
+          const T* below = row(y + k);
           const T tap = taps[static_cast<size_t>(radius + k)];
           for (int x = x0; x < x1; ++x) o[x] += tap * (above[x] + below[x]);
         }
@@ -93,16 +105,13 @@ void convolveRows(const ImageT<T>& in, ImageT<T>& out, std::span<const T> taps, 
                   T mix_original, const ImageT<T>& original) {
   const int width = in.width(), height = in.height();
   const int radius = static_cast<int>(taps.size() / 2);
+  const std::vector<int> reflected = reflectedIndices(width, radius);
   tbb::parallel_for(Rows(0, height, 8), [&](const Rows& rows) {
     std::vector<T> padded(static_cast<size_t>(width) + 2 * static_cast<size_t>(radius));
     for (int y = rows.begin(); y < rows.end(); ++y) {
       const T* src = in.row(y);
+      for (size_t i = 0; i < padded.size(); ++i) padded[i] = src[reflected[i]];
       T* centre = padded.data() + radius;
-      std::copy_n(src, width, centre);
-      for (int k = 1; k <= radius; ++k) {
-        centre[-k] = src[reflect(-k, width)];
-        centre[width - 1 + k] = src[reflect(width - 1 + k, width)];
-      }
       T* o = out.row(y);
       const T tap0 = taps[static_cast<size_t>(radius)];
       for (int x = 0; x < width; ++x) o[x] = tap0 * centre[x];

@@ -6,6 +6,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <Eigen/Dense>
 
 #include <algorithm>
 #include <cmath>
@@ -300,6 +301,50 @@ Image blurMix(Image image, double sigma_px, double weight) {
 
 Image gaussianBlur(Image image, double sigma_px) {
   return blurMix(std::move(image), sigma_px, 1.0);
+}
+
+Image gaussianBlurAround(const Image& image, double sigma_px, float outside) {
+  if (!std::isfinite(sigma_px) || sigma_px < 0.0)
+    fail("Gaussian blur sigma must be finite and >= 0 px, got {}", sigma_px);
+  const int width = image.width(), height = image.height();
+  // The support: the bounding box of the pixels that are not `outside`.
+  int x0 = width, x1 = -1, y0 = height, y1 = -1;
+  for (int y = 0; y < height; ++y) {
+    const float* row = image.row(y);
+    for (int x = 0; x < width; ++x)
+      if (row[x] != outside)
+        x0 = std::min(x0, x), x1 = std::max(x1, x), y0 = std::min(y0, y), y1 = std::max(y1, y);
+  }
+  if (x1 < 0 || sigma_px == 0.0) return image;  // constant: its blur is itself
+  int f = 1;
+  while (sigma_px / (2.0 * f) >= 8.0 && f < (1 << 20)) f *= 2;
+  if (f > 1) return gaussianBlur(image, sigma_px);
+  // The direct path's taps folded by the mirror onto the support's rows and
+  // columns: w(y, j) = sum of taps[k] over the k with reflect(y + k) = j.
+  const std::vector<float> taps = floatTaps(gaussianTaps(sigma_px));
+  const int radius = static_cast<int>(taps.size() / 2);
+  const auto folded = [&](int n, int first, int last) {
+    Eigen::MatrixXd w = Eigen::MatrixXd::Zero(n, last - first + 1);
+    const std::vector<int> reflected = reflectedIndices(n, radius);
+    for (int y = 0; y < n; ++y)
+      for (int k = -radius; k <= radius; ++k) {
+        const int j = reflected[static_cast<size_t>(y + k + radius)];
+        if (j >= first && j <= last)
+          w(y, j - first) += static_cast<double>(taps[static_cast<size_t>(k + radius)]);
+      }
+    return w;
+  };
+  const Eigen::MatrixXd wy = folded(height, y0, y1), wx = folded(width, x0, x1);
+  Eigen::MatrixXd d(y1 - y0 + 1, x1 - x0 + 1);
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x)
+      d(y - y0, x - x0) = static_cast<double>(image(x, y)) - static_cast<double>(outside);
+  const Eigen::MatrixXd blurred = (wy * d) * wx.transpose();
+  Image out(width, height);
+  for (int y = 0; y < height; ++y)
+    for (int x = 0; x < width; ++x)
+      out(x, y) = static_cast<float>(static_cast<double>(outside) + blurred(y, x));
+  return out;
 }
 
 Image scatterBlur(Image image, double weight, double sigma_px) {

@@ -92,6 +92,35 @@ TEST(GaussianBlur, SmallSigmaIsTheDirectMirrorConvolution) {
   }
 }
 
+TEST(GaussianBlur, AroundAFeatureIsTheWholeImagesBlur) {
+  // A feature on a constant background, inside and touching the border (its
+  // mirror images count), the kernel narrower and wider than the image; the
+  // large sigma takes the reduced path either way.
+  const struct {
+    int width, height, x, y, w, h;
+    double sigma;
+    float outside;
+  } cases[] = {{64, 48, 20, 10, 15, 9, 3.0, 1.0f},
+               {128, 128, 40, 50, 30, 20, 15.2, 1.0f},
+               {128, 96, 0, 70, 25, 26, 15.2, 0.0f},
+               {37, 29, 30, 0, 7, 29, 10.0, 0.5f},
+               {300, 200, 100, 80, 40, 30, 40.0, 1.0f}};
+  for (const auto& c : cases) {
+    Image in(c.width, c.height, c.outside);
+    const Image feature = randomImage(c.w, c.h, 5);
+    for (int y = 0; y < c.h; ++y)
+      for (int x = 0; x < c.w; ++x) in(c.x + x, c.y + y) = feature(x, y);
+    EXPECT_LT(
+        maxAbsDifference(gaussianBlurAround(in, c.sigma, c.outside), gaussianBlur(in, c.sigma)),
+        1e-6)
+        << c.width << "x" << c.height << " sigma " << c.sigma;
+  }
+  // A constant image is its own blur; the errors are gaussianBlur's.
+  const Image flat(20, 10, 1.0f);
+  EXPECT_TRUE(identical(gaussianBlurAround(flat, 3.0, 1.0f), flat));
+  EXPECT_THROW(gaussianBlurAround(flat, -1.0, 1.0f), Error);
+}
+
 TEST(GaussianBlur, PreservesTheImageSum) {
   const struct {
     int width, height;

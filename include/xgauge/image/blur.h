@@ -41,6 +41,19 @@ namespace xgauge {
 // Throws Error if sigma_px is negative or not finite.
 Image gaussianBlur(Image image, double sigma_px);
 
+// gaussianBlur of an image that equals `outside` wherever it is not some
+// feature (the background of a render, or zero around a derivative image):
+// outside + G(image - outside), the sum taken over the bounding box of the
+// pixels that differ from `outside` alone, with the direct path's taps folded
+// by the mirror. Its cost scales with that box's width times the image's
+// rather than the image's area times the kernel's width: the model's scatter
+// estimates blur a 128 px render of the whole detector with a kernel wider
+// than the part's shadow (measured: a fifth of the direct convolution's
+// time there). Equal to gaussianBlur within float rounding (a few 1e-7) where
+// gaussianBlur takes its direct path (sigma below 16 px), which it is for
+// larger sigma. Throws Error as gaussianBlur.
+Image gaussianBlurAround(const Image& image, double sigma_px, float outside);
+
 // weight * G(image, sigma_px) + (1 - weight) * image, fused so that a large
 // blur works in place; ScatterModel::apply is the scatter built on it (the
 // blurred part lowers the bright side of every edge and raises the dark side,

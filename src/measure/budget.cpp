@@ -238,9 +238,10 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   //   linearised step again from where the last one ended, with the fit's
   //   A and J held fixed and the moved model's residuals there (the chord
   //   method), in lockstep with the unmoved model iterated in the same way
-  //   from theta, until the difference of their iterates changes by less
-  //   than a thousandth of the linearisation's steps (2 to 5 steps, one
-  //   render each, the unmoved model's shared by every influence). On that
+  //   from theta, until the difference of their iterates has settled
+  //   (kChordTolerance: its geometric tail under 0.005 of the
+  //   linearisation's steps, then added; 3 to 7 steps, one render each, the
+  //   unmoved model's shared by every influence). On that
   //   pair and on a 4096^2 prism A pair the shifts agreed with ten-iteration
   //   Ceres re-solves at 1024 px (about 200 renders each, what this did
   //   until now) to 0.0004 mm per component on the prism B pair and 0.0015

@@ -8,6 +8,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace xgauge {
 
@@ -33,14 +34,15 @@ double Runner::run(const StagePlan& plan) {
     objective.initial_step[k] =
         std::min(objective.initial_step[k], 0.5 * (objective.upper[k] - objective.lower[k]));
   std::vector<double> trial = theta_;
-  ProgressBar progress(plan.name, plan.method == Method::kUniformSampling
-                                      ? plan.sampling_points + 1
-                                      : plan.evaluations);
+  std::optional<ProgressBar> progress;
+  if (progress_)
+    progress.emplace(plan.name, plan.method == Method::kUniformSampling ? plan.sampling_points + 1
+                                                                        : plan.evaluations);
   StageReport report;
   objective.f = [&](std::span<const double> x) {
     for (size_t k = 0; k < plan.indices.size(); ++k)
       trial[static_cast<size_t>(plan.indices[k])] = x[k];
-    progress.advance();
+    if (progress) progress->advance();
     // An infeasible point is +inf for the optimiser (optimize/minimize.h).
     const double value = model_.loss(trial, plan.level, plan.samples, plan.radiographs)
                              .value_or(std::numeric_limits<double>::infinity());
@@ -62,7 +64,7 @@ double Runner::run(const StagePlan& plan) {
   options.seed = seed_;
   options.max_restarts = 2;
   const OptimizeResult r = minimize(objective, options);
-  progress.finish();
+  if (progress) progress->finish();
   if (r.value <= report.loss_before)
     for (size_t k = 0; k < plan.indices.size(); ++k)
       theta_[static_cast<size_t>(plan.indices[k])] = r.x[k];

@@ -33,8 +33,12 @@ struct StagePlan {
 // does not increase the loss, and records each stage's report.
 class Runner {
  public:
-  Runner(ForwardModel& model, std::vector<double>& theta, MeasurementResult& result, uint64_t seed)
-      : model_(model), theta_(theta), result_(result), seed_(seed) {}
+  // `progress`: a progress bar per stage (not for stages run side by side).
+  Runner(ForwardModel& model, std::vector<double>& theta, MeasurementResult& result, uint64_t seed,
+         bool progress = true)
+      : model_(model), theta_(theta), result_(result), seed_(seed), progress_(progress) {}
+
+  uint64_t seed() const { return seed_; }
 
   void report(const StageReport& stage);
   // Every point evaluated by the next run() goes into `record` (loss, theta).
@@ -47,6 +51,7 @@ class Runner {
   std::vector<double>& theta_;
   MeasurementResult& result_;
   uint64_t seed_;
+  bool progress_;
   std::vector<std::pair<double, std::vector<double>>>* record_ = nullptr;
 };
 

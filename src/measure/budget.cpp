@@ -259,8 +259,9 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   std::vector<Influence> influences;
   const bool material_free = !model.materialIndices().empty();
   // The re-solves take their Jacobian as the schedule's least-squares stage
-  // does: from the render with derivatives (one render per iteration) where
-  // it does, else by forward differences (1 + n renders).
+  // does: from the render with derivatives (reused between iterations:
+  // least_squares.cpp) where it does, else by forward differences (1 + n
+  // renders).
   const JacobianKind jacobian_kind =
       leastSquaresStage(model, scheduleFor(model.job().schedule)).render_derivatives
           ? JacobianKind::kRenderDerivatives

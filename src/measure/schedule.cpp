@@ -41,9 +41,10 @@ Schedule makeBobyqa() {
 Schedule makeDefault() {
   Schedule s = makeBobyqa();
   s.kind = ScheduleKind::kDefault;
-  // The joint fit by Levenberg-Marquardt on the render's derivatives: each
-  // iteration is one render with derivatives, and a start from the pose
-  // steps converges in a handful on each level.
+  // The joint fit by Levenberg-Marquardt on the render's derivatives (taken
+  // again only after a large move or near the end: least_squares.cpp), and
+  // a start from the pose steps converges in a handful of steps on each
+  // level.
   JointStage coarse;
   coarse.gauss_newton = true;
   coarse.min_width_px = 512;

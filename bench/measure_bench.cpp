@@ -132,6 +132,18 @@ int main(int argc, char** argv) {
   try {
     setupLogging(Verbosity::kQuiet);
     setProgressEnabled(false);
+    // [dataset folder] [--thesis | --renders]: anything else, or a flag in
+    // the folder's place, is refused (`--help` once became a folder of
+    // 437 MB of simulated radiographs).
+    const std::string usage =
+        "usage: measure_bench [dataset folder, default data/prism_a] [--thesis | --renders]";
+    const bool help =
+        argc > 1 && (std::string(argv[1]) == "--help" || std::string(argv[1]) == "-h");
+    if (help || argc > 3 || (argc > 1 && std::string(argv[1]).starts_with("-")) ||
+        (argc > 2 && std::string(argv[2]) != "--thesis" && std::string(argv[2]) != "--renders")) {
+      std::fprintf(help ? stdout : stderr, "%s\n", usage.c_str());
+      return help ? 0 : 2;
+    }
     const fs::path dataset = argc > 1 ? fs::path(argv[1]) : fs::path("data/prism_a");
     if (!fs::exists(dataset / "truth.json")) {
       std::printf("simulating %s (about 35 s)...\n", dataset.c_str());

@@ -164,12 +164,7 @@ class ImageResiduals final : public ceres::CostFunction {
       at[static_cast<size_t>(indices_[k])] = parameters[0][k] * scales_[k];
     const bool want_jacobian = jacobians != nullptr && jacobians[0] != nullptr;
     if (want_jacobian && jacobian_ == JacobianKind::kRenderDerivatives && reuseAt(parameters[0])) {
-      if (last_.size() != n || !std::equal(last_.begin(), last_.end(), parameters[0])) {
-        last_.clear();
-        if (!render(at, r_)) return false;
-        transform();
-        last_.assign(parameters[0], parameters[0] + n);
-      }
+      if (!renderAt(parameters[0], at)) return false;
       compress(residuals, jacobians[0]);
       return true;
     }
@@ -194,12 +189,7 @@ class ImageResiduals final : public ceres::CostFunction {
     // the same candidate again and, when it accepts it, asks for the
     // Jacobian there. Everything else an evaluation reads is fixed for this
     // cost function, so r_ and its transform stand.
-    if (last_.size() != n || !std::equal(last_.begin(), last_.end(), parameters[0])) {
-      last_.clear();
-      if (!render(at, r_)) return false;
-      transform();
-      last_.assign(parameters[0], parameters[0] + n);
-    }
+    if (!renderAt(parameters[0], at)) return false;
     if (!want_jacobian) {
       std::fill(residuals, residuals + n, 0.0);
       residuals[n] = std::sqrt(squared_sum_);
@@ -246,6 +236,18 @@ class ImageResiduals final : public ceres::CostFunction {
   void count() const {
     ++evaluations_;
     if (progress_) progress_->advance();
+  }
+  // r_ and its transform at x (theta: the model's parameters there),
+  // rendered unless they are that point's already; false where it cannot be
+  // simulated.
+  bool renderAt(const double* x, const std::vector<double>& theta) const {
+    const size_t n = indices_.size();
+    if (last_.size() == n && std::equal(last_.begin(), last_.end(), x)) return true;
+    last_.clear();
+    if (!render(theta, r_)) return false;
+    transform();
+    last_.assign(x, x + n);
+    return true;
   }
   bool render(const std::vector<double>& theta, std::vector<double>& out) const {
     count();

@@ -364,6 +364,11 @@ TEST_F(Calibrate, AWedgeFittedAsAKnownPartGivesBackItsMaterial) {
       {256, 0.8, 1.6, Vec3(2.5, -3.5, 90.0), Vec2(3.0, -2.0), 0.12, 40.0},
       // A third of it off the detector's side, turned by 200 degrees.
       {320, 0.4, 1.3, Vec3(-4.0, 1.5, 200.0), Vec2(35.0, 0.0), 0.0, 1.0},
+      // A corner (the thin end of the left wall) of a wedge turned by 90
+      // degrees, on a detector 68 mm across at the wedge: the calibration
+      // grid's s04, whose tilt the local fit left 2.7 degrees off until the
+      // tilts were searched again (part.cpp, retryTilts).
+      {256, 0.4, 1.5, Vec3(0.19, 0.61, 90.0), Vec2(28.0, 21.0), 0.144, 113.0},
   };
   int index = 0;
   for (const KnownWedgeCase& c : setups) {

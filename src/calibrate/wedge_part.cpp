@@ -112,6 +112,7 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
   part_job->initial_path_mm = smallestExtent(*job.model, job.caliper);
   part_job->rate_floor = job.rate_floor;
   part_job->pose_schedule = wedgeSchedule();
+  part_job->tilt_retry_deg = kTiltRetryDeg;
   out.part_job = part_job;
   out.part.emplace();
   PartCalibration& part = *out.part;
@@ -180,6 +181,11 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
       "{:.3f}; {} rounds, final table of {} path bins up to {:.2f} mm",
       name, angles.x(), angles.y(), angles.z(), out.magnification, part.rounds.size(),
       out.path_mm.size(), out.x_max_mm);
+  if (std::max(std::abs(angles.x()), std::abs(angles.y())) > kMaxTiltDeg - 0.05)
+    spdlog::warn(
+        "{}: the wedge's tilt ({:.2f}, {:.2f}) deg ends at the search's bound of {} deg: the pose, "
+        "and with it the curve, is probably wrong; check that the wedge lies flat",
+        name, angles.x(), angles.y(), kMaxTiltDeg);
   std::vector<double> theta = part.measurement.theta;
   theta.resize(static_cast<size_t>(ForwardModel(*part_job->inputs, out.material).size()));
   out.table_uncertainty = out.fit.tableUncertainty();

@@ -16,7 +16,8 @@
 //      from 1.05 to the detector's width over 30 mm (kMinVisibleMm of the
 //      wedge across the detector); the best distinct samples are refined in
 //      6 DOF and the best of those coarse to fine. Tilts are bounded by
-//      kMaxTiltDeg. Then the pose again with the curve free.
+//      kMaxTiltDeg. Then the pose again with the curve free, and its tilts
+//      searched again from kTiltRetryDeg either way and their mirror images.
 //   3. The scatter, when the job gives none: the halo fit (halo.h) on the
 //      open beam the posed wedge leaves; where that does not decide, the
 //      halo around the box of the radiograph's sharp edges if it did.
@@ -39,6 +40,8 @@ namespace xgauge {
 
 // A wedge lies on a holder: tilted by a few degrees at most.
 inline constexpr double kMaxTiltDeg = 6.0;
+// The step of the tilts' second search (PartCalibrationJob::tilt_retry_deg).
+inline constexpr double kTiltRetryDeg = 3.0;
 inline constexpr double kMinVisibleMm = 30.0;
 
 // Steps 2 to 7 of calibrateFromWedge for a job with a model: `normalized`

@@ -81,6 +81,12 @@ struct PartCalibrationJob {
   // rounds' least squares (a wedge calibration's search over the turn in
   // plane and the depth).
   std::optional<Schedule> pose_schedule;
+  // Greater than 0: after the poses with a free curve, the initial
+  // radiograph's tilts (rotation about x and y) are searched again by this
+  // step and by their mirror images (part.cpp, retryTilts), for a part such
+  // as a calibration wedge seen in part, whose tilt the local fit can leave
+  // a few degrees off or mirrored.
+  double tilt_retry_deg = 0.0;
 
   static PartCalibrationJob load(const std::filesystem::path& path);
 };

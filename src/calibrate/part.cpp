@@ -24,7 +24,7 @@ namespace {
 // mirror (-tilt, when it is more than half a step from 0) within its bounds,
 // the joint fit run from there, and the first start that lowers the loss
 // by more than kTiltGain taken; passes repeat until one finds nothing, at
-// most kTiltPasses. A right pose costs one pass: four or five joint fits.
+// most kTiltPasses. A right pose costs one pass: four to six joint fits.
 constexpr int kTiltPasses = 3;
 constexpr double kTiltGain = 1e-4;
 

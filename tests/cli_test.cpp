@@ -16,6 +16,7 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <string>
 
 namespace xgauge {
@@ -259,6 +260,27 @@ class MeasureJob : public Cli {
                       "centre_mm": [[-10, 10], [-10, 10], [390, 410]]})" +
                                  top_extra + "}");
   }
+  // A radiograph of a 20 x 30 x 10 mm cuboid, turned a little, 400 mm from
+  // the detector, in place of the fixture's a.tif, with Gaussian noise of
+  // sigma `noise` as a detector's (noise-free, the residual regions'
+  // threshold, robust sigmas of the residual itself, finds the small
+  // differences between this render's sampling and the fit's at every edge).
+  void renderCuboid(double noise) {
+    const CommandResult rendered =
+        run("render " + kRoot + "/parts/cuboid.json --machine " + out("machine.json") +
+            " --material " + out("material.json") +
+            " --rotation-deg 1 -2 0.5 --translation-mm 1 -2 400 --set size_x=20 --set size_y=30"
+            " --set size_z=10 -n 3 --format f32 -o " +
+            out("a.tif"));
+    ASSERT_EQ(rendered.status, 0) << rendered.output;
+    Image image = readTiff(out("a.tif"));
+    std::mt19937_64 rng(7);
+    std::normal_distribution<double> gauss(0.0, noise);
+    for (int y = 0; y < image.height(); ++y)
+      for (int x = 0; x < image.width(); ++x)
+        image(x, y) = static_cast<float>(static_cast<double>(image(x, y)) + gauss(rng));
+    writeTiff(out("a.tif"), image, TiffFormat::kFloat32);
+  }
   void expectJobFailure(const std::string& job_file, const std::string& message) {
     const CommandResult r = run("measure " + job_file + " -o " + out("result") + " -q");
     EXPECT_NE(r.status, 0) << r.output;
@@ -473,6 +495,18 @@ TEST_F(CalibrateWedge, AFailureLeavesItsDiagnosticAndNoMaterial) {
   EXPECT_EQ(late.at("ramp").at("thin_end_row"), 10.0);
   EXPECT_GT(late.at("table").at("path_mm").size(), 100u);
   EXPECT_EQ(late.at("fit").at("fits").size(), 4u);
+
+  // A calibration that succeeds into the same folder removes the failure's
+  // diagnostic; one that fails there again removes the material it left.
+  const CommandResult ok = calibrate(job());
+  ASSERT_EQ(ok.status, 0) << ok.output;
+  EXPECT_TRUE(fs::exists(out("cal") + "/material.json"));
+  for (const char* file : {"failed_calibration.json", "failed_calibration.html"})
+    EXPECT_FALSE(fs::exists(out("cal") + "/" + file)) << file;
+  expectFailure(job("", "open.tif"), "failed at its step \"find the ramp\"");
+  EXPECT_TRUE(fs::exists(out("cal") + "/failed_calibration.json"));
+  for (const char* file : {"material.json", "calibration.json", "report.html"})
+    EXPECT_FALSE(fs::exists(out("cal") + "/" + file)) << file;
 }
 
 TEST_F(CalibrateWedge, RampRunsOffTheImage) {
@@ -561,13 +595,7 @@ namespace {
 TEST_F(MeasureJob, ExitStatusGivesTheVerdicts) {
   // A radiograph the model explains (the fixture's flat rectangle fits no
   // cuboid, and the U of such a fit is anything from 0.2 to 15 mm).
-  const CommandResult rendered =
-      run("render " + kRoot + "/parts/cuboid.json --machine " + out("machine.json") +
-          " --material " + out("material.json") +
-          " --rotation-deg 1 -2 0.5 --translation-mm 1 -2 400 --set size_x=20 --set size_y=20"
-          " --set size_z=10 -n 3 --format f32 -o " +
-          out("a.tif"));
-  ASSERT_EQ(rendered.status, 0) << rendered.output;
+  renderCuboid(0.005);
   const CommandResult first = run("measure " + job() + " -o " + out("plain") + " -q");
   ASSERT_EQ(first.status, 0) << first.output;
   EXPECT_TRUE(fs::exists(out("plain") + "/report.html"));
@@ -603,6 +631,56 @@ TEST_F(MeasureJob, ExitStatusGivesTheVerdicts) {
   // Inside the zone but within U of its upper limit: inconclusive, exit 2.
   EXPECT_EQ(verdict(value, -(2.0 * u + 0.5), 0.5 * u + 1e-6, "inconclusive"),
             (std::pair<int, std::string>{2, "inconclusive"}));
+}
+
+}  // namespace
+}  // namespace xgauge
+
+namespace xgauge {
+namespace {
+
+// A wrong part model is no measurement (measure/self_check.h,
+// AcceptanceRule): the cuboid's size_x held 4 mm short of the radiograph's
+// leaves residual regions over much of the shadow; the retry fails the same
+// way; exit 1, no verdict even with a tolerance, and the fit's values kept
+// apart from the results in result.json, with the reasons.
+TEST_F(MeasureJob, AWrongPartModelIsNotMeasured) {
+  renderCuboid(0.005);
+  const std::string extra =
+      R"(, "dimensions": {"free": ["size_y", "size_z"], "fixed": {"size_x": 16}},
+         "tolerances": {"size_y": {"lower": -1, "upper": 1}},
+         "acceptance": {"retries": 1})";
+  const CommandResult r = run("measure " + job("", extra) + " -o " + out("wrong") + " -q");
+  EXPECT_EQ(r.status, 1) << r.output;
+  EXPECT_NE(r.output.find("NOT MEASURED"), std::string::npos) << r.output;
+  std::ifstream in(out("wrong") + "/result.json");
+  ASSERT_TRUE(in) << r.output;
+  const nlohmann::json result = nlohmann::json::parse(in);
+  EXPECT_EQ(result.at("status"), "not measured");
+  EXPECT_EQ(result.at("attempts"), 2);
+  EXPECT_FALSE(result.contains("dimensions"));
+  EXPECT_FALSE(result.contains("uncertainty"));
+  ASSERT_FALSE(result.at("failures").empty());
+  for (const nlohmann::json& d : result.at("rejected_dimensions"))
+    EXPECT_FALSE(d.contains("verdict"));
+  EXPECT_TRUE(fs::exists(out("wrong") + "/report.html"));
+
+  // The same job with the right size_x measures, and its verdict is given.
+  const std::string right =
+      R"(, "dimensions": {"free": ["size_y", "size_z"], "fixed": {"size_x": 20}},
+         "tolerances": {"size_y": {"lower": -1, "upper": 1}})";
+  const CommandResult good = run("measure " + job("", right) + " -o " + out("right") + " -q");
+  EXPECT_EQ(good.status, 0) << good.output;
+  std::ifstream in_right(out("right") + "/result.json");
+  const nlohmann::json measured = nlohmann::json::parse(in_right);
+  EXPECT_EQ(measured.at("status"), "measured");
+  EXPECT_TRUE(measured.at("failures").empty());
+  EXPECT_EQ(measured.at("dimensions").at(1).at("verdict"), "conforms");
+}
+
+// A misspelled key of the acceptance rule is an error, as every key is.
+TEST_F(MeasureJob, MisspelledAcceptanceKey) {
+  expectJobFailure(job("", R"(, "acceptance": {"max_misfit": 3})"), "max_misfit");
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 
 #include <spdlog/spdlog.h>
 
+#include <array>
 #include <cstdio>
 
 namespace xgauge::cli {
@@ -74,8 +75,22 @@ void addCalibrateCommand(CLI::App& app, CalibrateArguments& wedge, CalibrateArgu
 void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
                   const CalibrateArguments& part) {
   const CLI::App* cmd = app.get_subcommand("calibrate");
-  checkOutputFolder(cmd->got_subcommand("wedge") ? wedge.output : part.output);
+  const std::filesystem::path folder = cmd->got_subcommand("wedge") ? wedge.output : part.output;
+  checkOutputFolder(folder);
+  // An earlier run's outputs that this run's would contradict go when this
+  // run's files arrive: a failure's diagnostic beside a new material, or a
+  // material beside a new failure's diagnostic.
   OutputTransaction outputs;
+  auto replaceEarlierRun = [&](bool failed) {
+    static constexpr std::array<const char*, 3> kSucceeded{"material.json", "calibration.json",
+                                                           "report.html"};
+    static constexpr std::array<const char*, 2> kFailed{"failed_calibration.json",
+                                                        "failed_calibration.html"};
+    if (failed)
+      for (const char* name : kSucceeded) outputs.removeOnCommit(folder / name);
+    else
+      for (const char* name : kFailed) outputs.removeOnCommit(folder / name);
+  };
   if (cmd->got_subcommand("wedge")) {
     const WedgeCalibrationJob job = WedgeCalibrationJob::load(wedge.job);
     const TrueCurve truth = trueCurve(wedge.truth);
@@ -87,6 +102,7 @@ void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
       // failure, and only that: the user can see why (the ramp, the table,
       // the fits tried), and no file can be taken for a calibration.
       writeFailedWedgeCalibration(job, result, e.what(), wedge.output, wedge.report);
+      replaceEarlierRun(true);
       outputs.commit();
       throw failedAt(result.step, e, wedge);
     }
@@ -125,12 +141,14 @@ void runCalibrate(const CLI::App& app, const CalibrateArguments& wedge,
       calibrateFromPart(job, result);
     } catch (const Error& e) {
       writeFailedPartCalibration(job, result, e.what(), part.output, part.report);
+      replaceEarlierRun(true);
       outputs.commit();
       throw failedAt(result.step, e, part);
     }
     writePartCalibration(job, result, truth, part.output, part.report);
     printMaterial(result.material, part);
   }
+  replaceEarlierRun(false);
   outputs.commit();
 }
 

@@ -4,13 +4,13 @@
 #include "xgauge/core/config.h"
 #include "xgauge/core/output.h"
 #include "xgauge/geometry/part_model.h"
-#include "xgauge/xray/machine.h"
 #include "xgauge/measure/inputs.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/measure/measure.h"
 #include "xgauge/measure/model.h"
 #include "xgauge/measure/truth.h"
 #include "xgauge/report/measurement.h"
+#include "xgauge/xray/machine.h"
 
 #include <spdlog/sinks/ostream_sink.h>
 #include <spdlog/spdlog.h>
@@ -55,7 +55,17 @@ int runMeasure(const MeasureArguments& args) {
   std::vector<Decision> decisions;
   for (const auto& d : result.dimensions)
     if (d.decision) toleranced = true, decisions.push_back(*d.decision);
-  std::string table = fmt::format("{:<18} {:>10} {:>9}", "dimension", "measured", "U (k=2)");
+  const bool measured = result.status == MeasurementStatus::kMeasured;
+  std::string table;
+  if (!measured) {
+    table += fmt::format(
+        "NOT MEASURED: after {} attempt(s) the fit does not explain the radiographs; the values "
+        "below are the rejected fit's, not results, and no verdict is given:\n",
+        result.attempts);
+    for (const auto& f : result.check.failures) table += "  - " + f + "\n";
+  }
+  table += fmt::format("{:<18} {:>10} {:>9}", "dimension", measured ? "measured" : "rejected",
+                       "U (k=2)");
   if (toleranced) table += fmt::format(" {:>19} {:<16}", "tolerance zone", " verdict");
   if (truth) table += fmt::format(" {:>10} {:>10}", "true", "error");
   table += "\n";
@@ -76,11 +86,12 @@ int runMeasure(const MeasureArguments& args) {
   }
   for (const auto& c : result.uncertainty.combinations)
     table += c.name.empty()
-                 ? fmt::format("{:<18} {:>10.4f} {:>9.4f}  (measurable combination of dimensions "
-                               "that are not determined alone)\n",
-                               c.expression, c.value, c.expanded)
-                 : fmt::format("{:<18} {:>10.4f} {:>9.4f}  (the part's combination {})\n",
-                               c.name, c.value, c.expanded, c.expression);
+                 ? fmt::format(
+                       "{:<18} {:>10.4f} {:>9.4f}  (measurable combination of dimensions "
+                       "that are not determined alone)\n",
+                       c.expression, c.value, c.expanded)
+                 : fmt::format("{:<18} {:>10.4f} {:>9.4f}  (the part's combination {})\n", c.name,
+                               c.value, c.expanded, c.expression);
   if (const auto& refined = result.uncertainty.refinement)
     table += fmt::format(
         "material refined in situ: rates x (1 {:+.5f}), u {:.5f} (prior {:.5f}); the curve "
@@ -105,7 +116,7 @@ int runMeasure(const MeasureArguments& args) {
   writeFileAtomically(std::filesystem::path(args.output) / "measure.log", log.str() + table);
   outputs.commit();
   spdlog::info("wrote {}/result.json", args.output);
-  return exitCodeFor(decisions);
+  return measured ? exitCodeFor(decisions) : kExitCouldNotMeasure;
 }
 
 void addMaterialCommand(CLI::App& app, MaterialArguments& args) {

@@ -29,7 +29,7 @@ struct Registry {
   std::set<fs::path> temporaries;
   bool transaction_open = false;
   std::vector<std::pair<fs::path, fs::path>> held;  // temp, target, in finishing order
-  std::vector<fs::path> created_folders;           // parents first
+  std::vector<fs::path> created_folders;            // parents first
 };
 
 Registry& registry() {
@@ -55,8 +55,9 @@ void probeFolder(const fs::path& folder, const fs::path& output) {
   const fs::path probe = folder / fmt::format(".xgauge-probe.{}", ::getpid());
   const int fd = ::open(probe.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0600);
   if (fd < 0)
-    throw Error(fmt::format("cannot write in the folder {}: {}", folder.string(), std::strerror(errno)),
-                SourceLocation::inFile(output.string()));
+    throw Error(
+        fmt::format("cannot write in the folder {}: {}", folder.string(), std::strerror(errno)),
+        SourceLocation::inFile(output.string()));
   ::close(fd);
   ::unlink(probe.c_str());
 }
@@ -155,9 +156,18 @@ void OutputTransaction::commit() {
                   SourceLocation::inFile(it->second.string()));
     r.temporaries.erase(it->first);
   }
+  for (const fs::path& stale : stale_) {
+    std::error_code ec;
+    fs::remove(stale, ec);
+    if (ec)
+      throw Error(fmt::format("cannot remove an earlier run's file: {}", ec.message()),
+                  SourceLocation::inFile(stale.string()));
+  }
   r.created_folders.clear();
   committed_ = true;
 }
+
+void OutputTransaction::removeOnCommit(const fs::path& stale) { stale_.push_back(stale); }
 
 bool OutputTransaction::holdBack(const fs::path& temp, const fs::path& target) {
   Registry& r = registry();

@@ -63,10 +63,12 @@ std::optional<Vec3> middleOfPath(const TriangleMesh& mesh, const Pose& pose, con
 }  // namespace
 
 SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
-                           const LinearizedFit& fit) {
+                           const LinearizedFit& fit, const AcceptanceRule& rule) {
   SelfCheck check;
-  // Parameters at a bound.
+  // Parameters at a bound: the true value may lie beyond it, and the fit's
+  // minimum is not one (a pose in a wrong basin often ends at a bound).
   const ParameterLayout& layout = model.parameters();
+  std::vector<std::string>& at_bound = rule.fail_at_bound ? check.failures : check.warnings;
   for (int i : model.leastSquaresIndices()) {
     const auto k = static_cast<size_t>(i);
     const double lo = model.lower()[k], hi = model.upper()[k], range = hi - lo;
@@ -74,12 +76,12 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
     const std::string& full = layout[i].name;  // "dim/width", "t00/position/x"
     const std::string name = full.rfind("dim/", 0) == 0 ? full.substr(4) : full;
     if (theta[k] - lo <= 1e-4 * range)
-      check.warnings.push_back(
+      at_bound.push_back(
           fmt::format("{} = {:.4f} is at its lower bound {:.4f}: the true "
                       "value may lie below it; widen the bounds",
                       name, theta[k], lo));
     if (hi - theta[k] <= 1e-4 * range)
-      check.warnings.push_back(
+      at_bound.push_back(
           fmt::format("{} = {:.4f} is at its upper bound {:.4f}: the true "
                       "value may lie above it; widen the bounds",
                       name, theta[k], hi));
@@ -132,7 +134,14 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
     rc.mean_abs_residual = sum_abs / static_cast<double>(roi.area());
     rc.rms_residual = std::sqrt(sum_squares / static_cast<double>(roi.area()));
     rc.misfit_ratio = rc.noise_sigma > 0.0 ? rc.rms_residual / rc.noise_sigma : 0.0;
-    if (rc.misfit_ratio > kMisfitRatio)
+    if (rc.misfit_ratio > rule.max_misfit_ratio)
+      check.failures.push_back(fmt::format(
+          "{}: the fit leaves an rms residual of {:.3g} per pixel, {:.1f} times what the noise of "
+          "its open beam explains ({:.3g}), above the {:.1f} times a measurement may leave: the "
+          "pose may lie in a wrong minimum, or the part, the material, the scatter or the "
+          "machine differ from their models",
+          spec.name, rc.rms_residual, rc.misfit_ratio, rc.noise_sigma, rule.max_misfit_ratio));
+    else if (rc.misfit_ratio > kMisfitRatio)
       check.warnings.push_back(fmt::format(
           "{}: the fit leaves an rms residual of {:.3g} per pixel, {:.1f} times what the noise "
           "of its open beam explains ({:.3g}): the part, the material, the scatter or the "
@@ -148,6 +157,8 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
         rc.longest_path_mm = std::max(rc.longest_path_mm, p);
         if (p > 0.0) ++through, short_paths += calibrated && p < (*calibrated)[0];
       }
+    rc.shadow_area_mm2 =
+        static_cast<double>(through) * scale * scale * machine.pitch_u_mm * machine.pitch_v_mm;
     rc.below_range_fraction =
         through > 0 ? static_cast<double>(short_paths) / static_cast<double>(through) : 0.0;
     if (calibrated && rc.longest_path_mm > (*calibrated)[1] * (1.0 + kBeyondRange))
@@ -204,8 +215,11 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
           ++count, sw += v, sx += v * (x + 0.5), sy += v * (y + 0.5), peak = std::max(peak, v);
           xmin = std::min(xmin, x), xmax = std::max(xmax, x), ymin = std::min(ymin, y),
           ymax = std::max(ymax, y);
-          for (int dy = -1; dy <= 1; ++dy)
-            for (int dx = -1; dx <= 1; ++dx) {
+          // Pixels up to kRegionMergeGapPx apart: one region (a band of
+          // residuals along a wall breaks up where the noise dips).
+          constexpr int g = kRegionMergeGapPx;
+          for (int dy = -g; dy <= g; ++dy)
+            for (int dx = -g; dx <= g; ++dx) {
               const int xx = x + dx, yy = y + dy;
               if (xx < 0 || yy < 0 || xx >= roi.width || yy >= roi.height) continue;
               int& l = label[static_cast<size_t>(yy * roi.width + xx)];
@@ -233,6 +247,18 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
         check.regions.push_back(region);
       }
   }
+  // Regions that together cover much of the shadow: not a defect of the
+  // part but a fit that does not explain the radiographs.
+  double region_area = 0.0, shadow_area = 0.0;
+  for (const ResidualRegion& region : check.regions) region_area += region.area_mm2;
+  for (const RadiographCheck& rc : check.radiographs) shadow_area += rc.shadow_area_mm2;
+  check.region_share = shadow_area > 0.0 ? region_area / shadow_area : 0.0;
+  if (check.region_share > rule.max_region_share)
+    check.failures.push_back(fmt::format(
+        "residual regions cover {:.1f} mm^2, {:.1f} % of the part's shadows ({:.1f} mm^2), above "
+        "the {:.1f} % a measurement may leave: the part differs from its model over much of it, "
+        "or the fit is in a wrong minimum",
+        region_area, 100.0 * check.region_share, shadow_area, 100.0 * rule.max_region_share));
   std::sort(check.regions.begin(), check.regions.end(),
             [](const ResidualRegion& a, const ResidualRegion& b) { return a.sigmas > b.sigmas; });
   for (const ResidualRegion& region : check.regions)
@@ -259,6 +285,12 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
             rc.name, rc.mean_abs_residual / typical, rc.mean_abs_residual, typical));
     }
   return check;
+}
+
+double SelfCheck::worstMisfitRatio() const {
+  double worst = 0.0;
+  for (const RadiographCheck& rc : radiographs) worst = std::max(worst, rc.misfit_ratio);
+  return worst;
 }
 
 }  // namespace xgauge

@@ -10,8 +10,9 @@
 namespace xgauge {
 
 // Checks the solution theta of `model` from the fit's linearisation there
-// (residuals over every radiograph at the fit's level).
+// (residuals over every radiograph at the fit's level); what `rule` makes a
+// failure goes into SelfCheck::failures.
 SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
-                           const LinearizedFit& fit);
+                           const LinearizedFit& fit, const AcceptanceRule& rule);
 
 }  // namespace xgauge

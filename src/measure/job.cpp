@@ -238,8 +238,8 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
   const auto kind = scheduleKindFromName(schedule);
   if (!kind)
     root.at("schedule")
-        .fail(
-            fmt::format("unknown schedule '{}' (known: default, bobyqa, gauss-newton, thesis)", schedule));
+        .fail(fmt::format("unknown schedule '{}' (known: default, bobyqa, gauss-newton, thesis)",
+                          schedule));
   job.schedule = *kind;
   const std::string loss = root.get<std::string>("loss", "l1");
   if (loss != "l1" && loss != "l2") root.at("loss").fail("expected \"l1\" or \"l2\"");
@@ -264,6 +264,13 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
           "refining the material needs a radiograph that sees the part from another direction "
           "(a \"rotated\" one, or a second \"free\" one): translated shots alone cannot tell "
           "the curve from the part's depth");
+  }
+  if (auto acceptance = root.find("acceptance")) {
+    AcceptanceRule& rule = job.acceptance;
+    if (auto v = acceptance->find("max_misfit_ratio")) rule.max_misfit_ratio = v->number(1.0, 1e3);
+    if (auto v = acceptance->find("max_region_share")) rule.max_region_share = v->number(0.0, 1.0);
+    if (auto v = acceptance->find("fail_at_bound")) rule.fail_at_bound = v->as<bool>();
+    if (auto v = acceptance->find("retries")) rule.retries = static_cast<int>(v->integer(0, 10));
   }
   if (auto seed = root.find("seed"))
     job.seed = static_cast<uint64_t>(seed->integer(0, int64_t{1} << 53));

@@ -167,8 +167,8 @@ void fitPose(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     double best = kInf;
     std::vector<double> best_theta = theta;
     const auto starts =
-        distinctBest(record, searched, model,
-                     static_cast<size_t>(std::max(1, schedule.multistart)), schedule.separation);
+        distinctBest(record, searched, model, static_cast<size_t>(std::max(1, schedule.multistart)),
+                     schedule.separation);
     // Side by side, each on a model of its own (its scratch is not shared):
     // a pose search's renders are too small to keep two cores busy (on a
     // 4096^2 Prism A pair its stages took as long on one core as on two).
@@ -251,8 +251,7 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     // on edges are sampled finer (schedule.h, LeastSquaresStage::edge_samples).
     model.setEdgeSamples(ls.edge_samples);
     runner.report(solveLeastSquares(model, theta, least_squares, every_radiograph, ls_level,
-                                    ls.samples,
-                                    ls.max_iterations * iteration_factor,
+                                    ls.samples, ls.max_iterations * iteration_factor,
                                     model.job().loss == LossKind::kMeanAbsolute,
                                     ls.render_derivatives ? JacobianKind::kRenderDerivatives
                                                           : JacobianKind::kForwardDifferences));
@@ -262,6 +261,8 @@ void fitJointly(ForwardModel& model, std::vector<double>& theta, Runner& runner,
 // The uncertainty budget and the self-checks, from the residuals and their
 // Jacobian at the solution, on the least-squares stage's level.
 void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementResult& result) {
+  // What the acceptance rule calls a failure is reported by measure(), after
+  // its retries.
   const auto start = std::chrono::steady_clock::now();
   const Schedule& schedule = scheduleFor(model.job().schedule);
   const LeastSquaresStage ls = leastSquaresStage(model, schedule);
@@ -285,7 +286,7 @@ void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementRe
   result.uncertainty = estimateUncertainty(model, theta, fit);
   spdlog::debug("uncertainty: the budget in {:.2f} s", secondsSince(budget_start));
   const auto checks_start = std::chrono::steady_clock::now();
-  result.check = checkMeasurement(model, theta, fit);
+  result.check = checkMeasurement(model, theta, fit, model.job().acceptance);
   spdlog::debug("uncertainty: the self-checks in {:.2f} s", secondsSince(checks_start));
   for (const std::string& note : result.uncertainty.notes) spdlog::info("uncertainty: {}", note);
   for (const std::string& warning : result.check.warnings) spdlog::warn("{}", warning);
@@ -313,18 +314,13 @@ void decideConformity(const ForwardModel& model, MeasurementResult& result) {
   }
 }
 
-}  // namespace
-
-MeasurementResult measure(const MeasurementInputs& inputs) {
-  ForwardModel model(inputs);
-  return measure(model, model.start());
-}
-
-MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
-                          const MeasureOptions& options) {
+// One run of the pipeline from theta: the poses, the joint fit, the budget
+// and the self-checks; `seed` for its searches.
+MeasurementResult runPipeline(ForwardModel& model, std::vector<double> theta,
+                              const MeasureOptions& options, const Schedule& schedule,
+                              uint64_t seed) {
   const auto start = std::chrono::steady_clock::now();
   const MeasurementJob& job = model.job();
-  const Schedule& schedule = options.schedule ? *options.schedule : scheduleFor(job.schedule);
   XG_CHECK(theta.size() == static_cast<size_t>(model.size()), "theta has the wrong size");
   model.setEdgeSamples(0);  // until the least-squares stage
   if (const auto why = model.infeasibility(theta))
@@ -333,7 +329,7 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
         "infeasible points",
         *why);
   MeasurementResult result;
-  Runner runner(model, theta, result, job.seed);
+  Runner runner(model, theta, result, seed);
 
   // 1. Each radiograph's pose alone, the part at its starting dimensions.
   for (int r = 0; options.search_poses && r < model.radiographCount(); ++r) {
@@ -370,7 +366,6 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
     result.dimensions.push_back(std::move(d));
   }
   if (options.assess) assess(model, theta, result);
-  decideConformity(model, result);
   for (int r = 0; r < model.radiographCount(); ++r) {
     double loss = std::numeric_limits<double>::quiet_NaN();
     if (options.full_size_losses) {
@@ -384,6 +379,80 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
+}
+
+// Whether attempt a is a better fit than b: one that passes the acceptance
+// rule first, then the smaller worst misfit, then the smaller share of
+// residual regions.
+bool betterAttempt(const MeasurementResult& a, const MeasurementResult& b) {
+  if (a.check.failures.empty() != b.check.failures.empty()) return a.check.failures.empty();
+  const double ma = a.check.worstMisfitRatio(), mb = b.check.worstMisfitRatio();
+  if (ma != mb) return ma < mb;
+  return a.check.region_share < b.check.region_share;
+}
+
+// The seed of retry k: well apart from the job's (SplitMix64's increment).
+uint64_t retrySeed(uint64_t seed, int k) {
+  return seed + static_cast<uint64_t>(k) * 0x9E3779B97F4A7C15ULL;
+}
+
+}  // namespace
+
+std::string_view measurementStatusName(MeasurementStatus status) {
+  switch (status) {
+    case MeasurementStatus::kMeasured:
+      return "measured";
+    case MeasurementStatus::kNotMeasured:
+      return "not measured";
+  }
+  return "unknown";
+}
+
+MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
+                          const MeasureOptions& options) {
+  const auto start = std::chrono::steady_clock::now();
+  const MeasurementJob& job = model.job();
+  const Schedule& schedule = options.schedule ? *options.schedule : scheduleFor(job.schedule);
+  const AcceptanceRule& rule = job.acceptance;
+  const bool judge = options.assess && options.judge;
+  MeasurementResult best = runPipeline(model, theta, options, schedule, job.seed);
+  int evaluations = best.evaluations;
+  // A fit the rule refuses: again from other starts, the pose searches with
+  // another seed and twice their starts.
+  Schedule wider = schedule;
+  wider.pose.multistart = 2 * std::max(2, schedule.pose.multistart);
+  for (int k = 1; judge && k <= rule.retries && !best.check.failures.empty(); ++k) {
+    spdlog::warn(
+        "attempt {} is not a measurement ({} failure(s), the first: {}); trying again "
+        "from other starts",
+        k, best.check.failures.size(), best.check.failures.front());
+    MeasurementResult next = runPipeline(model, theta, options, wider, retrySeed(job.seed, k));
+    evaluations += next.evaluations;
+    next.attempts = k + 1;
+    if (betterAttempt(next, best)) best = std::move(next);
+    best.attempts = k + 1;
+  }
+  best.evaluations = evaluations;
+  if (!judge) {
+    // A calibration's fit: the failures are warnings (it has its own checks).
+    best.check.warnings.insert(best.check.warnings.begin(), best.check.failures.begin(),
+                               best.check.failures.end());
+    best.check.failures.clear();
+  }
+  if (best.check.failures.empty()) {
+    decideConformity(model, best);
+  } else {
+    best.status = MeasurementStatus::kNotMeasured;
+    for (const std::string& failure : best.check.failures)
+      spdlog::error("not measured: {}", failure);
+  }
+  best.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return best;
+}
+
+MeasurementResult measure(const MeasurementInputs& inputs) {
+  ForwardModel model(inputs);
+  return measure(model, model.start());
 }
 
 void takeFullSizeLosses(const ForwardModel& model, const std::vector<Image>& simulated_full,

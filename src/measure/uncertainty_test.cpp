@@ -716,23 +716,39 @@ TEST_F(Uncertainty, AResidualRegionIsReportedWhereTheImageDiffersAndNowhereElse)
   EXPECT_TRUE(warned);
 }
 
-TEST_F(Uncertainty, AParameterAtItsBoundAndAPoorFitAreWarnedAbout) {
+// A dimension held 1 mm from the truth by its bounds is no measurement
+// (self_check.h, AcceptanceRule): it ends at its bound, residual regions
+// cover much of the shadows, every retry fails the same way, and the result
+// says so; without the bounds the same radiographs measure, with no warning.
+TEST_F(Uncertainty, AParameterAtItsBoundAndAPoorFitAreNotAMeasurement) {
   Scene scene;
   scene.noise = 0.005;
   scene.dimension_bounds = R"({"size_x": [21.6, 22.4]})";  // the truth, 20.6, lies 1 mm below
   const MeasurementResult r = measureScene(scene);
-  bool bound = false, misfit = false;
-  for (const auto& w : r.check.warnings) {
-    bound |= w.find("size_x") != std::string::npos && w.find("lower bound") != std::string::npos;
-    misfit |= w.find("times what the noise") != std::string::npos;
+  bool bound = false, regions = false, misfit = false;
+  for (const auto& f : r.check.failures) {
+    bound |= f.find("size_x") != std::string::npos && f.find("lower bound") != std::string::npos;
+    regions |= f.find("residual regions cover") != std::string::npos;
   }
+  // The rms residual over the whole roi (1.4 to 1.8 times the noise) is
+  // diluted by the pixels the wrong width leaves alone: a warning.
+  for (const auto& w : r.check.warnings)
+    misfit |= w.find("times what the noise") != std::string::npos;
+  EXPECT_EQ(r.status, MeasurementStatus::kNotMeasured);
+  EXPECT_EQ(r.attempts, 1 + AcceptanceRule{}.retries);
+  for (const MeasuredDimension& d : r.dimensions) EXPECT_FALSE(d.decision.has_value());
   EXPECT_TRUE(bound);
+  EXPECT_TRUE(regions);
   EXPECT_TRUE(misfit) << "misfit ratios " << r.check.radiographs[0].misfit_ratio << " "
                       << r.check.radiographs[1].misfit_ratio << ", noise "
                       << r.check.radiographs[0].noise_sigma;
   Scene inside = scene;
   inside.dimension_bounds = "{}";
-  for (const auto& w : measureScene(inside).check.warnings) ADD_FAILURE() << "unexpected: " << w;
+  const MeasurementResult measured = measureScene(inside);
+  EXPECT_EQ(measured.status, MeasurementStatus::kMeasured);
+  EXPECT_EQ(measured.attempts, 1);
+  for (const auto& f : measured.check.failures) ADD_FAILURE() << "unexpected: " << f;
+  for (const auto& w : measured.check.warnings) ADD_FAILURE() << "unexpected: " << w;
 }
 
 TEST_F(Uncertainty, PathsBeyondTheMaterialsCalibratedRangeAreWarnedAbout) {

@@ -106,9 +106,9 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                      // belong to the unscaled curve.
                      nlohmann::json curve = model.materialOf(result.theta).toJson();
                      curve.erase("uncertainty");
-                     curve["description"] = fmt::format(
-                         "{}, every rate times 1 {:+.6f} (refined in situ)",
-                         model.material().description(), refined->rate_scale);
+                     curve["description"] =
+                         fmt::format("{}, every rate times 1 {:+.6f} (refined in situ)",
+                                     model.material().description(), refined->rate_scale);
                      return curve;
                    }()}};
   nlohmann::json regions = nlohmann::json::array();
@@ -131,6 +131,7 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                     {"mean_abs_residual", c.mean_abs_residual},
                     {"rms_residual", c.rms_residual},
                     {"misfit_ratio", c.misfit_ratio},
+                    {"shadow_area_mm2", c.shadow_area_mm2},
                     {"longest_path_mm", c.longest_path_mm},
                     {"below_range_fraction", c.below_range_fraction}});
   bool toleranced = false;
@@ -173,17 +174,24 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
   // The digests of the bytes the loader parsed (measure/inputs.h), so that
   // no input is read twice.
   nlohmann::json inputs = model.inputs().sha256;
+  // A fit the acceptance rule refused keeps its values apart, under names
+  // no reader of results takes for a measurement (measure/self_check.h).
+  const bool measured = result.status == MeasurementStatus::kMeasured;
   return {{"software", "xgauge " XGAUGE_VERSION_STRING},
           {"job", job.file.string()},
+          {"status", std::string(measurementStatusName(result.status))},
+          {"failures", result.check.failures},
+          {"attempts", result.attempts},
           {"schedule", scheduleName(job.schedule)},
           {"loss", lossKindName(job.loss)},
-          {"dimensions", dims},
+          {measured ? "dimensions" : "rejected_dimensions", dims},
           {"decision_rule",
            toleranced ? nlohmann::json(std::string(kDecisionRule)) : nlohmann::json(nullptr)},
-          {"uncertainty", uncertainty},
+          {measured ? "uncertainty" : "rejected_uncertainty", uncertainty},
           {"material_refinement", refinement},
           {"warnings", result.check.warnings},
           {"residual_regions", regions},
+          {"region_share", result.check.region_share},
           {"fit_checks", fits},
           {"radiographs", radiographs},
           {"total_loss", result.total_loss},

@@ -93,6 +93,12 @@ StudyRun readRunResult(const fs::path& file, const std::string& id, const Datase
   StudyRun run;
   run.id = id;
   run.seconds = root.at("seconds").number();
+  if (const auto status = root.find("status"); status && status->string() == "not measured") {
+    const ConfigNode failures = root.at("failures");
+    for (size_t k = 0; k < failures.size(); ++k) run.failures.push_back(failures[k].string());
+    if (run.failures.empty()) failures.fail("a run not measured names no failure");
+    return run;
+  }
   const ConfigNode dims = root.at("dimensions");
   for (size_t k = 0; k < dims.size(); ++k) {
     const ConfigNode d = dims[k];
@@ -339,7 +345,14 @@ std::string StudySummary::table() const {
   for (const auto& [expression, c] : combination_coverage)
     out += fmt::format("{:<18} {:>14.4f} {:>14}", expression, c.mean_abs, "") + figures(c) +
            fmt::format("  (measurable combination, {} runs)\n", c.runs);
-  out += fmt::format("{} runs, median {:.1f} s per run\n", runs.size(), median_seconds);
+  out += fmt::format("{} runs, median {:.1f} s per run", runs.size(), median_seconds);
+  if (measured_runs < static_cast<int>(runs.size()))
+    out += fmt::format("; {} measured, {} not (the figures above are the measured runs'):",
+                       measured_runs, runs.size() - static_cast<size_t>(measured_runs));
+  out += "\n";
+  for (const StudyRun& run : runs)
+    if (!run.measured())
+      out += fmt::format("  {} not measured: {}\n", run.id, run.failures.front());
   return out;
 }
 
@@ -481,12 +494,18 @@ StudySummary runStudy(const StudyOptions& options) {
   for (const auto& d : summary.dimensions)
     summary.mean_abs_mm[d] = 0.0, summary.max_abs_mm[d] = 0.0;
   std::vector<double> seconds;
+  for (const auto& run : summary.runs) summary.measured_runs += run.measured();
   for (const auto& run : summary.runs) {
     csv += fmt::format("{},{:.3f}", run.id, run.seconds);
     seconds.push_back(run.seconds);
+    if (!run.measured()) {
+      for (size_t d = 0; d < summary.dimensions.size(); ++d) csv += ",not measured";
+      csv += "\n";
+      continue;
+    }
     for (const auto& d : summary.dimensions) {
       const double e = std::abs(run.error_mm.at(d));
-      summary.mean_abs_mm[d] += e / static_cast<double>(summary.runs.size());
+      summary.mean_abs_mm[d] += e / static_cast<double>(summary.measured_runs);
       summary.max_abs_mm[d] = std::max(summary.max_abs_mm[d], e);
       summary.max_abs_mm_all = std::max(summary.max_abs_mm_all, e);
       sum_all += e, ++count_all;
@@ -544,6 +563,8 @@ StudySummary runStudy(const StudyOptions& options) {
       combination_errors[expression] = {{"error_mm", eu.first},
                                         {"expanded_uncertainty", eu.second}};
     all_runs.push_back({{"id", run.id},
+                        {"status", run.measured() ? "measured" : "not measured"},
+                        {"failures", run.failures},
                         {"seconds", run.seconds},
                         {"error_mm", run.error_mm},
                         {"expanded_uncertainty_mm", run.expanded_mm},
@@ -554,14 +575,15 @@ StudySummary runStudy(const StudyOptions& options) {
           {"standard_uncertainty", run.rate_scale->second}};
   }
   const nlohmann::json study_json = {{"dataset", options.dataset.string()},
-                                      {"combinations", options.combinations},
-                                      {"dimensions", per_dim},
-                                      {"mean_abs_mm", summary.mean_abs_mm_all},
-                                      {"max_abs_mm", summary.max_abs_mm_all},
-                                      {"pooled_coverage", coverageJson(summary.pooled)},
-                                      {"combinations_coverage", combos},
-                                      {"median_seconds", summary.median_seconds},
-                                      {"runs", all_runs}};
+                                     {"combinations", options.combinations},
+                                     {"dimensions", per_dim},
+                                     {"mean_abs_mm", summary.mean_abs_mm_all},
+                                     {"max_abs_mm", summary.max_abs_mm_all},
+                                     {"pooled_coverage", coverageJson(summary.pooled)},
+                                     {"combinations_coverage", combos},
+                                     {"median_seconds", summary.median_seconds},
+                                     {"measured_runs", summary.measured_runs},
+                                     {"runs", all_runs}};
   writeFileAtomically(options.output / "study.json", study_json.dump(2) + "\n");
   if (options.report)
     writeReport(options.output / "report.html", ReportKind::kStudy,

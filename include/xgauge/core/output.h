@@ -18,6 +18,7 @@
 
 #include <filesystem>
 #include <string>
+#include <vector>
 
 namespace xgauge {
 
@@ -39,8 +40,13 @@ class OutputTransaction {
   OutputTransaction(const OutputTransaction&) = delete;
   OutputTransaction& operator=(const OutputTransaction&) = delete;
 
-  // Moves every held-back file into place, in the order they were finished.
+  // Moves every held-back file into place, in the order they were finished,
+  // then removes the files named by removeOnCommit().
   void commit();
+  // A file an earlier run left that this run's outputs contradict (a failed
+  // calibration's diagnostic beside a new material.json, or the reverse):
+  // removed when, and only when, the transaction commits.
+  void removeOnCommit(const std::filesystem::path& stale);
 
   // For AtomicFile::commit(): when a transaction is open, it takes the
   // finished temporary file and returns true.
@@ -50,6 +56,7 @@ class OutputTransaction {
 
  private:
   bool committed_ = false;
+  std::vector<std::filesystem::path> stale_;
 };
 
 // Temporary files that an interruption must remove (AtomicFile registers

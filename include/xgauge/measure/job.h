@@ -48,6 +48,10 @@
 //   schedule           optional, "default", "bobyqa", "gauss-newton" or "thesis"
 //                      (measure/schedule.h)
 //   loss               optional, "l1" (thesis eq. 3.13, default) or "l2"
+//   acceptance         optional: when a fit is not a measurement (measure/self_check.h,
+//                      AcceptanceRule): {"max_misfit_ratio": 1 .. 1000, default 4;
+//                      "max_region_share": 0 .. 1, default 0.05; "fail_at_bound": bool,
+//                      default true; "retries": 0 .. 10, default 2}
 //   seed               optional, default 1
 #pragma once
 
@@ -58,6 +62,7 @@
 #include "xgauge/image/scatter.h"
 #include "xgauge/loss/loss.h"
 #include "xgauge/measure/schedule.h"
+#include "xgauge/measure/self_check.h"
 #include "xgauge/measure/tolerance.h"
 
 #include <array>
@@ -116,6 +121,7 @@ struct MeasurementJob {
   ScheduleKind schedule = ScheduleKind::kDefault;
   LossKind loss = LossKind::kMeanAbsolute;
   MaterialRefinement refine_material = MaterialRefinement::kNone;
+  AcceptanceRule acceptance;
   uint64_t seed = 1;
 
   // Reads a parsed job file whose part model `part` the caller has loaded

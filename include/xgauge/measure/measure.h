@@ -13,6 +13,7 @@
 
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace xgauge {
@@ -20,9 +21,9 @@ namespace xgauge {
 struct StageReport {
   std::string name;
   std::string method;
-  int level = 0;    // pyramid level (0 = full size)
-  int samples = 1;  // area samples per axis
-  int evaluations = 0;  // renders of every radiograph in the stage...
+  int level = 0;             // pyramid level (0 = full size)
+  int samples = 1;           // area samples per axis
+  int evaluations = 0;       // renders of every radiograph in the stage...
   int with_derivatives = 0;  // ...of which renders with derivatives (xray/derivatives.h)
   double seconds = 0.0;
   double loss_before = 0.0;  // the stage's objective (for the reweighted least-squares
@@ -55,7 +56,19 @@ struct MeasuredRadiograph {
   double loss = 0.0;  // final loss at full size
 };
 
+// Whether a fit is a measurement (measure/self_check.h, AcceptanceRule).
+enum class MeasurementStatus {
+  kMeasured,
+  // Every attempt failed the job's acceptance rule (SelfCheck::failures
+  // says why): the values are the best attempt's fit, not a result; no
+  // dimension has a verdict.
+  kNotMeasured,
+};
+std::string_view measurementStatusName(MeasurementStatus status);
+
 struct MeasurementResult {
+  MeasurementStatus status = MeasurementStatus::kMeasured;
+  int attempts = 1;  // the pipeline's runs: 1 + the retries the acceptance rule took
   std::vector<MeasuredDimension> dimensions;
   std::vector<MeasuredRadiograph> radiographs;
   std::vector<StageReport> stages;
@@ -86,6 +99,10 @@ struct MeasureOptions {
   // intermediate fits, with a provisional material: their budget would cost
   // re-solves and warn about a misfit the next round removes).
   bool assess = true;
+  // false: what the job's acceptance rule calls a failure is a warning, and
+  // nothing is retried (a calibration's fit of its known part, which has
+  // checks of its own).
+  bool judge = true;
   // The schedule to follow instead of the job's (a wedge calibration's
   // search over the in-plane turn and the depth); not owned.
   const Schedule* schedule = nullptr;

@@ -7,15 +7,20 @@
 //     bounds: 1.3; a clean replica radiograph: below 1, the noise in the
 //     part's shadow being lower than in the open beam);
 //   - a radiograph whose residuals are kWorseRatio times the others' median;
-//   - residual regions: connected areas (8-neighbours, one sign) where the
-//     3 x 3 mean of the residual exceeds kRegionSigmas robust sigmas of that
-//     mean over the roi, at least kRegionMinPixels pixels of the fit's level:
-//     where the part differs from its model (a void, a chip, a burr, dirt);
+//   - residual regions: connected areas (one sign; pixels up to
+//     kRegionMergeGapPx apart belong to one region, so that the fragments of
+//     one wall's band of residuals are one region) where the 3 x 3 mean of
+//     the residual exceeds kRegionSigmas robust sigmas of that mean over the
+//     roi, at least kRegionMinPixels pixels of the fit's level: where the
+//     part differs from its model (a void, a chip, a burr, dirt);
 //   - paths through the fitted part longer than the material's calibrated
 //     range (its file's "calibrated_range_mm") by more than kBeyondRange of
 //     it: the curve is extrapolated there; or more than kBelowRangeFraction
 //     of the pixels that see the part with paths below the range (a few are
 //     at every edge).
+// Some of these make the fit no measurement at all (AcceptanceRule below,
+// docs/method.md, "The failure rule"): they go into SelfCheck::failures
+// instead of its warnings.
 #pragma once
 
 #include "xgauge/core/transform.h"
@@ -30,8 +35,27 @@ inline constexpr double kMisfitRatio = 1.25;
 inline constexpr double kWorseRatio = 2.0;
 inline constexpr double kRegionSigmas = 5.0;
 inline constexpr int kRegionMinPixels = 6;
+inline constexpr int kRegionMergeGapPx = 3;
 inline constexpr double kBeyondRange = 0.01;
 inline constexpr double kBelowRangeFraction = 0.05;
+
+// When a fit is not a measurement (job "acceptance"; docs/method.md, "The
+// failure rule"): a radiograph whose rms residual exceeds its open-beam
+// noise by more than max_misfit_ratio (kMisfitRatio only warns); a free
+// dimension or pose parameter at a bound; residual regions that together
+// cover more than max_region_share of the part's shadow. Such a fit is
+// tried again from other starts (`retries` times); if every attempt fails
+// the result is "not measured": no verdicts, exit status 1, its values kept
+// apart from any result.
+struct AcceptanceRule {
+  // The rms residual over the open beam's noise: a fit that leaves only
+  // noise gives 1, and detector effects the model leaves out (crosstalk, a
+  // halo's shape) about 1.3; a pose in a wrong minimum 9 to 50.
+  double max_misfit_ratio = 4.0;
+  double max_region_share = 0.05;
+  bool fail_at_bound = true;
+  int retries = 2;
+};
 
 struct ResidualRegion {
   std::string radiograph;
@@ -57,12 +81,18 @@ struct RadiographCheck {
   // Of the roi's pixels with a path through the part, those whose path lies
   // below the material's calibrated range (0 when it states none).
   double below_range_fraction = 0.0;
+  double shadow_area_mm2 = 0.0;  // on the detector: the roi's pixels with a path through the part
 };
 
 struct SelfCheck {
+  // Why the fit is not a measurement (AcceptanceRule); empty when it is.
+  std::vector<std::string> failures;
   std::vector<std::string> warnings;
   std::vector<RadiographCheck> radiographs;
   std::vector<ResidualRegion> regions;
+  // The regions' total area over the shadows' (the rule's max_region_share).
+  double region_share = 0.0;
+  double worstMisfitRatio() const;
 };
 
 }  // namespace xgauge

@@ -51,6 +51,11 @@ struct StudyRun {
   // scale the run found and its standard uncertainty.
   std::optional<std::pair<double, double>> rate_scale;
   double seconds = 0.0;
+  // Why the run is not a measurement (measure/self_check.h, AcceptanceRule);
+  // empty when it measured. Such a run has no errors and enters no figure
+  // but the count of runs that measured.
+  std::vector<std::string> failures;
+  bool measured() const { return failures.empty(); }
 };
 
 // How honest the uncertainties of a set of runs are: the mean U, the
@@ -72,6 +77,7 @@ struct StudySummary {
   std::map<std::string, CoverageFigures> coverage, combination_coverage;
   CoverageFigures pooled;
   double median_seconds = 0.0;
+  int measured_runs = 0;  // of runs.size(); the others failed the acceptance rule
   // The thesis-style table as text.
   std::string table() const;
 };

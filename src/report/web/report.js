@@ -215,12 +215,21 @@
       ['Time', `${fixed(result.seconds, 1)} s, ${result.evaluations} evaluations`],
     ]));
 
-    // The overall verdict first: what a reader needs most.
-    const judged = result.dimensions.filter((d) => d.verdict);
+    // The overall verdict first: what a reader needs most. A fit the
+    // acceptance rule refused is no measurement: its values are shown as
+    // the rejected fit's, with why.
+    const measured = result.status !== 'not measured';
+    const dimensions = (measured ? result.dimensions : result.rejected_dimensions) || [];
+    const judged = dimensions.filter((d) => d.verdict);
     const count = (v) => judged.filter((d) => d.verdict === v).length;
     let banner;
-    if (judged.length === 0) {
-      banner = el('div', { class: 'banner neutral' }, `${result.dimensions.filter((d) => d.free).length} dimensions measured; no tolerances given`);
+    if (!measured) {
+      banner = el('div', { class: 'banner nonconforming' },
+        `Not measured: the fit does not explain the radiographs (${result.attempts} attempt(s)); ` +
+        'the values below are the rejected fit\'s, not results, and no verdict is given',
+        el('ul', {}, (result.failures || []).map((f) => el('li', {}, f))));
+    } else if (judged.length === 0) {
+      banner = el('div', { class: 'banner neutral' }, `${dimensions.filter((d) => d.free).length} dimensions measured; no tolerances given`);
     } else if (count('does not conform') > 0) {
       banner = el('div', { class: 'banner nonconforming' }, `Does not conform: ${count('does not conform')} of ${judged.length} toleranced dimensions outside their zone`);
     } else if (count('inconclusive') > 0) {
@@ -232,7 +241,7 @@
     root.append(banner);
 
     // Warnings that name a dimension go beside its row; the rest above the table.
-    const names = result.dimensions.map((d) => d.name);
+    const names = dimensions.map((d) => d.name);
     const byDimension = {};
     const general_warnings = [];
     for (const w of result.warnings || []) {
@@ -247,7 +256,7 @@
     const headers = ['Dimension', 'Nominal', 'Measured', 'Deviation', 'Tolerance zone', 'U (k = 2)', 'Verdict'];
     if (truth) headers.push('True', 'Error');
     headers.push('Notes');
-    const rows = result.dimensions.map((d) => {
+    const rows = dimensions.map((d) => {
       const nom = d.tolerance ? d.tolerance.nominal : (nominal[d.name] || {}).nominal;
       const unit = d.unit === 'deg' ? '°' : '';
       const cells = [
@@ -273,7 +282,7 @@
       el('p', { class: 'note' }, 'Values in mm (° for angles). U is the expanded uncertainty with coverage factor 2 ' +
         '(about 95 %), from the budget below. Deviation = measured − nominal.')));
 
-    const u = result.uncertainty || {};
+    const u = (measured ? result.uncertainty : result.rejected_uncertainty) || {};
     if ((u.combinations || []).length) {
       root.append(el('h3', {}, 'Measurable combinations'),
         el('p', { class: 'note' }, "The part model's named combinations (a drawing's widths), and dimensions the radiographs cannot separate whose combination they do measure."),
@@ -508,6 +517,11 @@
     const dims = Object.keys(study.dimensions || {});
     root.append(el('h1', {}, 'Study of ' + basename(study.dataset)));
     root.append(el('p', { class: 'subtitle' }, `${runs.length} measurements (${study.combinations}) against the dataset's truth`));
+    const refused = runs.filter((r) => r.status === 'not measured');
+    if (refused.length)
+      root.append(el('div', { class: 'warnings' },
+        el('strong', {}, `${runs.length - refused.length} of ${runs.length} runs measured; the figures are theirs. Not measured:`),
+        el('ul', {}, refused.map((r) => el('li', {}, `${r.id}: ${(r.failures || [])[0] || ''}`)))));
     const pooled = study.pooled_coverage || {};
     root.append(meta([
       ['Dataset', study.dataset], ['Written', data.generated],

@@ -195,7 +195,7 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
         magnitudes.push_back(std::abs(static_cast<double>(mean3(x, y))));
     const double sigma = 1.4826 * median(std::move(magnitudes));
     if (!(sigma > 0.0)) continue;
-    const double threshold = kRegionSigmas * sigma;
+    const double threshold = kRegionSigmas * sigma, grow = kRegionGrowSigmas * sigma;
     std::vector<int> label(static_cast<size_t>(roi.area()), 0);
     int next = 0;
     for (int y0 = 0; y0 < roi.height; ++y0)
@@ -206,29 +206,30 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
         ++next;
         std::vector<std::pair<int, int>> stack{{x0, y0}};
         label[static_cast<size_t>(y0 * roi.width + x0)] = next;
-        int count = 0, xmin = x0, xmax = x0, ymin = y0, ymax = y0;
+        int count = 0, strong = 0, xmin = x0, xmax = x0, ymin = y0, ymax = y0;
         double sw = 0.0, sx = 0.0, sy = 0.0, peak = 0.0;
         while (!stack.empty()) {
           const auto [x, y] = stack.back();
           stack.pop_back();
           const double v = sign * static_cast<double>(mean3(x, y));
-          ++count, sw += v, sx += v * (x + 0.5), sy += v * (y + 0.5), peak = std::max(peak, v);
+          ++count, strong += v > threshold;
+          sw += v, sx += v * (x + 0.5), sy += v * (y + 0.5), peak = std::max(peak, v);
           xmin = std::min(xmin, x), xmax = std::max(xmax, x), ymin = std::min(ymin, y),
           ymax = std::max(ymax, y);
-          // Pixels up to kRegionMergeGapPx apart: one region (a band of
-          // residuals along a wall breaks up where the noise dips).
-          constexpr int g = kRegionMergeGapPx;
-          for (int dy = -g; dy <= g; ++dy)
-            for (int dx = -g; dx <= g; ++dx) {
+          // Grown through neighbours above the lower threshold
+          // (hysteresis): a band of residuals along a wall, which breaks up
+          // where the noise dips below the seed's threshold, is one region.
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
               const int xx = x + dx, yy = y + dy;
               if (xx < 0 || yy < 0 || xx >= roi.width || yy >= roi.height) continue;
               int& l = label[static_cast<size_t>(yy * roi.width + xx)];
-              if (l || sign * static_cast<double>(mean3(xx, yy)) <= threshold) continue;
+              if (l || sign * static_cast<double>(mean3(xx, yy)) <= grow) continue;
               l = next;
               stack.emplace_back(xx, yy);
             }
         }
-        if (count < kRegionMinPixels) continue;
+        if (strong < kRegionMinPixels) continue;
         ResidualRegion region;
         region.radiograph = spec.name;
         region.centre_px = Vec2((roi.x + sx / sw) * scale, (roi.y + sy / sw) * scale);

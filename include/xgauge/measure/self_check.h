@@ -7,12 +7,13 @@
 //     bounds: 1.3; a clean replica radiograph: below 1, the noise in the
 //     part's shadow being lower than in the open beam);
 //   - a radiograph whose residuals are kWorseRatio times the others' median;
-//   - residual regions: connected areas (one sign; pixels up to
-//     kRegionMergeGapPx apart belong to one region, so that the fragments of
-//     one wall's band of residuals are one region) where the 3 x 3 mean of
-//     the residual exceeds kRegionSigmas robust sigmas of that mean over the
-//     roi, at least kRegionMinPixels pixels of the fit's level: where the
-//     part differs from its model (a void, a chip, a burr, dirt);
+//   - residual regions: connected areas (8-neighbours, one sign) where the
+//     3 x 3 mean of the residual exceeds kRegionSigmas robust sigmas of that
+//     mean over the roi, at least kRegionMinPixels pixels of the fit's level,
+//     grown through their neighbours above kRegionGrowSigmas (hysteresis, so
+//     that a band of residuals along a wall, which the noise breaks into
+//     fragments at the higher threshold, is one region): where the part
+//     differs from its model (a void, a chip, a burr, dirt);
 //   - paths through the fitted part longer than the material's calibrated
 //     range (its file's "calibrated_range_mm") by more than kBeyondRange of
 //     it: the curve is extrapolated there; or more than kBelowRangeFraction
@@ -35,7 +36,7 @@ inline constexpr double kMisfitRatio = 1.25;
 inline constexpr double kWorseRatio = 2.0;
 inline constexpr double kRegionSigmas = 5.0;
 inline constexpr int kRegionMinPixels = 6;
-inline constexpr int kRegionMergeGapPx = 3;
+inline constexpr double kRegionGrowSigmas = 2.5;
 inline constexpr double kBeyondRange = 0.01;
 inline constexpr double kBelowRangeFraction = 0.05;
 

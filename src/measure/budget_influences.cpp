@@ -39,8 +39,10 @@ InfluenceMove leftOut(std::string note) {
   return move;
 }
 
-// change(inputs, amount) moves the influence by amount * u; `curve`, when
-// given, is the material curve that goes with it.
+// An influence that moves the model's inputs, listed where its u is
+// positive and the influences are propagated. change(inputs, amount) moves
+// the influence by amount * u; `curve`, when given, is the material curve
+// that goes with it.
 void withInputs(const InfluenceSource& source, InfluenceMoves& out, Propagation how,
                 const std::string& name, const std::string& quantity, const std::string& unit,
                 double u, std::function<void(MeasurementInputs&, double)> change,
@@ -63,7 +65,8 @@ double largestCurveMove(const std::vector<CurveMove>& moves) {
 // The curve's own moves (a wedge's caliper dimensions): each one is a
 // component with its own curve. Those that move the curve by less than
 // kMinorMoveShare of the largest go with the rest (materialRest), to save
-// their renders.
+// their renders. A model with the material free lists only the note that
+// the budget is the statistical part alone.
 void curveMoves(const InfluenceSource& source, InfluenceMoves& out) {
   if (!source.propagate) {
     out.push_back(leftOut(
@@ -156,22 +159,22 @@ void scatterComponents(const InfluenceSource& source, InfluenceMoves& out) {
       curves ? curves->sigma_plus_u : std::nullopt);
 }
 
-void sourceDetectorDistance(const InfluenceSource& source, InfluenceMoves& out) {
+// The machine's source-detector distance and pixel pitch.
+void machineGeometry(const InfluenceSource& source, InfluenceMoves& out) {
   const Machine& machine = source.inputs.machine;
-  const double u = machine.source_detector_distance_uncertainty_mm;
-  withInputs(source, out, Propagation::kIterated, "source-detector distance",
-             fmt::format("D = {:.2f} +- {:.2g} mm", machine.source_detector_distance_mm, u), "mm",
-             u, [u](MeasurementInputs& in, double amount) {
-               in.machine.source_detector_distance_mm += amount * u;
-             });
-}
-
-void pixelPitch(const InfluenceSource& source, InfluenceMoves& out) {
-  const Machine& machine = source.inputs.machine;
-  const double u = machine.pixel_pitch_uncertainty_relative;
+  withInputs(
+      source, out, Propagation::kIterated, "source-detector distance",
+      fmt::format("D = {:.2f} +- {:.2g} mm", machine.source_detector_distance_mm,
+                  machine.source_detector_distance_uncertainty_mm),
+      "mm", machine.source_detector_distance_uncertainty_mm,
+      [u = machine.source_detector_distance_uncertainty_mm](MeasurementInputs& in, double amount) {
+        in.machine.source_detector_distance_mm += amount * u;
+      });
   withInputs(source, out, Propagation::kIterated, "pixel pitch",
-             fmt::format("pitch {:.4g} mm, relative u = {:.2g}", machine.pitch_u_mm, u), "relative",
-             u, [u](MeasurementInputs& in, double amount) {
+             fmt::format("pitch {:.4g} mm, relative u = {:.2g}", machine.pitch_u_mm,
+                         machine.pixel_pitch_uncertainty_relative),
+             "relative", machine.pixel_pitch_uncertainty_relative,
+             [u = machine.pixel_pitch_uncertainty_relative](MeasurementInputs& in, double amount) {
                in.machine.pitch_u_mm *= 1.0 + amount * u;
                in.machine.pitch_v_mm *= 1.0 + amount * u;
              });
@@ -274,8 +277,7 @@ constexpr InfluenceEntry kInfluences[] = {
     {"material: INPUT", curveMoves},  // the curve each calibration input moves
     {"material", materialRest},       // the rest of the curve's uncertainty
     {"scatter weight, scatter width", scatterComponents},
-    {"source-detector distance", sourceDetectorDistance},
-    {"pixel pitch", pixelPitch},
+    {"source-detector distance, pixel pitch", machineGeometry},
     {"translation NAME", translations},
     {"detector lag NAME", detectorLags},
     {"normalisation NAME", normalisations},

@@ -1,0 +1,296 @@
+// The budget's influence quantities (docs/method.md, "Uncertainty"): one
+// table, kInfluences, whose entries each list their moves of the model by
+// the quantity's standard uncertainty u (one per calibration input or
+// radiograph where there are several), with what the budget reports of it
+// (name, quantity, unit, u) and how its shift is found (Propagation).
+#include "budget_internal.h"
+
+#include <fmt/format.h>
+
+#include <algorithm>
+#include <cmath>
+#include <memory>
+#include <utility>
+
+namespace xgauge::budget_internal {
+
+namespace {
+
+// A material's curve move (a calibration input) smaller than this share of
+// its largest is propagated with the rest of the curve's uncertainty.
+constexpr double kMinorMoveShare = 0.1;
+
+// What the influence quantities are read from.
+struct InfluenceSource {
+  const ForwardModel& model;
+  const MeasurementInputs& inputs;  // the model's
+  int fit_level = 0;                // the fit's level
+  int level = 0;                    // the re-solves' (resolveLevel)
+  // A model with the material free (a calibration) has parameters a moved
+  // model would not: its influences are not propagated.
+  bool propagate = true;
+};
+
+using InfluenceMoves = std::vector<InfluenceMove>;
+
+InfluenceMove leftOut(std::string note) {
+  InfluenceMove move;
+  move.left_out = std::move(note);
+  return move;
+}
+
+// An influence that moves the model's inputs, listed where its u is
+// positive and the influences are propagated. change(inputs, amount) moves
+// the influence by amount * u; `curve`, when given, is the material curve
+// that goes with it.
+void withInputs(const InfluenceSource& source, InfluenceMoves& out, Propagation how,
+                const std::string& name, const std::string& quantity, const std::string& unit,
+                double u, std::function<void(MeasurementInputs&, double)> change,
+                const std::optional<ExponentialSum>& curve = std::nullopt) {
+  if (!(u > 0.0) || !source.propagate) return;
+  InfluenceMove move;
+  move.influence = {name, quantity, unit, u, {}};
+  move.how = how;
+  move.change = std::move(change);
+  move.curve = curve;
+  out.push_back(std::move(move));
+}
+
+double largestCurveMove(const std::vector<CurveMove>& moves) {
+  double largest = 0.0;
+  for (const CurveMove& move : moves) largest = std::max(largest, move.curve_change);
+  return largest;
+}
+
+// The curve's own moves (a wedge's caliper dimensions): each one is a
+// component with its own curve. Those that move the curve by less than
+// kMinorMoveShare of the largest go with the rest (materialRest), to save
+// their renders. A model with the material free lists only the note that
+// the budget is the statistical part alone.
+void curveMoves(const InfluenceSource& source, InfluenceMoves& out) {
+  if (!source.propagate) {
+    out.push_back(leftOut(
+        "the material is fitted with the dimensions (a calibration): only the statistical part "
+        "is given"));
+    return;
+  }
+  const std::vector<CurveMove>& moves = source.model.material().curveMoves();
+  const double largest = largestCurveMove(moves);
+  for (const CurveMove& move : moves) {
+    if (move.curve_change < kMinorMoveShare * largest) continue;
+    InfluenceMove moved;
+    moved.influence = {"material: " + move.name,
+                       fmt::format("{} = {:.4g} +- {:.2g} {}, the curve it calibrated", move.name,
+                                   move.value, move.standard_uncertainty, move.unit),
+                       move.unit,
+                       move.standard_uncertainty,
+                       {}};
+    moved.how = Propagation::kLinearised;
+    moved.curve = move.curve;
+    out.push_back(std::move(moved));
+  }
+}
+
+// The rest of the curve's uncertainty (the material's table's, or what the
+// calibration inputs' own moves leave).
+void materialRest(const InfluenceSource& source, InfluenceMoves& out) {
+  if (!source.propagate) return;
+  const ExponentialSum& material = source.model.material();
+  double rest2 = material.transmissionUncertainty() * material.transmissionUncertainty();
+  const std::vector<CurveMove>& moves = material.curveMoves();
+  if (!moves.empty()) {
+    rest2 = material.curveMovesBesides() * material.curveMovesBesides();
+    const double largest = largestCurveMove(moves);
+    for (const CurveMove& move : moves)
+      if (move.curve_change < kMinorMoveShare * largest)
+        rest2 += move.curve_change * move.curve_change;
+  }
+  // When the scatter comes from the material's calibration and the file
+  // says how the curve moves with it, the scatter's share of the curve's
+  // uncertainty goes with the scatter's components: what is left is
+  // besides_scatter^2 - (u^2 - rest^2).
+  if (const auto& curves = source.inputs.scatter_curves) {
+    const double u = material.transmissionUncertainty();
+    rest2 -=
+        u * u - curves->transmission_uncertainty_besides * curves->transmission_uncertainty_besides;
+  }
+  const double u = std::sqrt(std::max(0.0, rest2));
+  // The rest as a scale of the rates that moves the curve by u at the
+  // worst path: dI/d(scale) = -x sum a_k mu_k exp(-mu_k x).
+  const double scale = material.rateScaleFor(u, source.model.partSizeMm());
+  if (!(scale > 0.0)) return;
+  InfluenceMove moved;
+  moved.influence = {"material",
+                     fmt::format("transmission curve, u = {:.2g}{}", u,
+                                 moves.empty() ? "" : " besides the calibration's inputs"),
+                     "transmission",
+                     u,
+                     {},
+                     scale};
+  moved.how = Propagation::kLinearised;
+  moved.curve = material.withScaledRates(scale);
+  out.push_back(std::move(moved));
+}
+
+// The scatter's weight and width. With the material's scatter curves, each
+// scatter component moves the measurement's scatter and the curve its
+// calibration would then have found, together.
+void scatterComponents(const InfluenceSource& source, InfluenceMoves& out) {
+  const ScatterModel& scatter = source.inputs.job.scatter;
+  if (!scatter.enabled()) return;
+  const std::optional<ScatterCurves>& curves = source.inputs.scatter_curves;
+  const char* with_curve = curves ? ", with the curve it calibrated" : "";
+  withInputs(
+      source, out, Propagation::kLinearised, "scatter weight",
+      fmt::format("w = {:.4g} +- {:.2g}{}", scatter.weight, scatter.weight_uncertainty, with_curve),
+      "1", scatter.weight_uncertainty,
+      [u = scatter.weight_uncertainty](MeasurementInputs& in, double amount) {
+        in.job.scatter.weight += amount * u;
+      },
+      curves ? curves->weight_plus_u : std::nullopt);
+  withInputs(
+      source, out, Propagation::kLinearised, "scatter width",
+      fmt::format("sigma = {:.4g} +- {:.2g} mm{}", scatter.sigma_mm, scatter.sigma_uncertainty_mm,
+                  with_curve),
+      "mm", scatter.sigma_uncertainty_mm,
+      [u = scatter.sigma_uncertainty_mm](MeasurementInputs& in, double amount) {
+        in.job.scatter.sigma_mm += amount * u;
+      },
+      curves ? curves->sigma_plus_u : std::nullopt);
+}
+
+// The machine's source-detector distance and pixel pitch.
+void machineGeometry(const InfluenceSource& source, InfluenceMoves& out) {
+  const Machine& machine = source.inputs.machine;
+  withInputs(
+      source, out, Propagation::kIterated, "source-detector distance",
+      fmt::format("D = {:.2f} +- {:.2g} mm", machine.source_detector_distance_mm,
+                  machine.source_detector_distance_uncertainty_mm),
+      "mm", machine.source_detector_distance_uncertainty_mm,
+      [u = machine.source_detector_distance_uncertainty_mm](MeasurementInputs& in, double amount) {
+        in.machine.source_detector_distance_mm += amount * u;
+      });
+  withInputs(source, out, Propagation::kIterated, "pixel pitch",
+             fmt::format("pitch {:.4g} mm, relative u = {:.2g}", machine.pitch_u_mm,
+                         machine.pixel_pitch_uncertainty_relative),
+             "relative", machine.pixel_pitch_uncertainty_relative,
+             [u = machine.pixel_pitch_uncertainty_relative](MeasurementInputs& in, double amount) {
+               in.machine.pitch_u_mm *= 1.0 + amount * u;
+               in.machine.pitch_v_mm *= 1.0 + amount * u;
+             });
+}
+
+// The known distance of each translated radiograph.
+void translations(const InfluenceSource& source, InfluenceMoves& out) {
+  const MeasurementInputs& inputs = source.inputs;
+  for (size_t k = 0; k < inputs.job.radiographs.size(); ++k) {
+    const RadiographSpec& spec = inputs.job.radiographs[k];
+    if (spec.pattern != Acquisition::kTranslated) continue;
+    const double u = spec.distance_uncertainty_mm;
+    withInputs(source, out, Propagation::kIterated, "translation " + spec.name,
+               fmt::format("distance {:.4f} +- {:.2g} mm", spec.distance_mm, u), "mm", u,
+               [k, u](MeasurementInputs& in, double amount) {
+                 in.job.radiographs[k].distance_mm += amount * u;
+               });
+  }
+}
+
+// Radiograph k of `in` with its lag fraction moved by `step`.
+void moveLag(MeasurementInputs& in, size_t k, const PreparedRadiograph& radiograph, double step) {
+  auto moved = std::make_shared<PreparedRadiograph>(radiograph);
+  const auto scale = static_cast<float>(1.0 / (1.0 - step * radiograph.lag_signal_white));
+  for (size_t l = 0; l < moved->levels.size(); ++l) {
+    const Image& signal = radiograph.lag_signal_levels[l];
+    if (signal.empty()) continue;
+    auto pixels = moved->levels[l].pixels();
+    auto lag = signal.pixels();
+    for (size_t i = 0; i < pixels.size(); ++i)
+      pixels[i] = (pixels[i] - static_cast<float>(step) * lag[i]) * scale;
+  }
+  in.radiographs[k] = std::move(moved);
+}
+
+// The lag fraction, estimated from a radiograph and its previous frame or
+// the machine's:
+// moved by u, the radiograph loses u more of that frame's signal, and its
+// white region as much of its own, by which it is divided again.
+void detectorLags(const InfluenceSource& source, InfluenceMoves& out) {
+  const MeasurementInputs& inputs = source.inputs;
+  for (size_t k = 0; k < inputs.radiographs.size(); ++k) {
+    const PreparedRadiograph& radiograph = *inputs.radiographs[k];
+    if (!radiograph.lag || !(radiograph.lag->uncertainty > 0.0)) continue;
+    const double u = radiograph.lag->uncertainty;
+    const std::string name = "detector lag " + inputs.job.radiographs[k].name;
+    // Linearised on the fit's level where the signal is kept there (it is
+    // not on levels kLagSignalWidthPx wide or more, to save memory), else
+    // solved again on the re-solves' level.
+    const auto kept = [&](int at) {
+      return radiograph.lag_signal_levels.size() > static_cast<size_t>(at) &&
+             !radiograph.lag_signal_levels[static_cast<size_t>(at)].empty();
+    };
+    const Propagation how =
+        kept(source.fit_level) ? Propagation::kLinearised : Propagation::kReSolved;
+    if (how == Propagation::kReSolved && !kept(source.level)) {
+      out.push_back(leftOut(
+          fmt::format("{}: its signal is not kept at level {}; left out", name, source.level)));
+      continue;
+    }
+    withInputs(source, out, how, name,
+               fmt::format("g = {:.5f} +- {:.2g} ({})", radiograph.lag->fraction, u,
+                           radiograph.lag->stated ? "the machine's" : "estimated"),
+               "1", u,
+               [k, u, prepared = inputs.radiographs[k]](MeasurementInputs& in, double amount) {
+                 moveLag(in, k, *prepared, amount * u);
+               });
+  }
+}
+
+// The white region's mean, by which every pixel of a radiograph was
+// divided: off by u (relative), the whole radiograph reads 1 / (1 + u) of
+// what it should.
+void normalisations(const InfluenceSource& source, InfluenceMoves& out) {
+  const MeasurementInputs& inputs = source.inputs;
+  for (size_t k = 0; k < inputs.radiographs.size(); ++k) {
+    const double u = inputs.radiographs[k]->white_mean_uncertainty;
+    withInputs(source, out, Propagation::kLinearised,
+               "normalisation " + inputs.job.radiographs[k].name,
+               fmt::format("white region's mean, relative u = {:.2g}", u), "relative", u,
+               [k, u, prepared = inputs.radiographs[k]](MeasurementInputs& in, double amount) {
+                 auto moved = std::make_shared<PreparedRadiograph>(*prepared);
+                 const auto scale = static_cast<float>(1.0 / (1.0 + amount * u));
+                 for (Image& image : moved->levels)
+                   for (float& p : image.pixels()) p *= scale;
+                 in.radiographs[k] = std::move(moved);
+               });
+  }
+}
+
+// One influence quantity: the name of its components (NAME: a calibration
+// input's or a radiograph's) and what lists its moves of the model.
+struct InfluenceEntry {
+  const char* name;
+  void (*list)(const InfluenceSource&, InfluenceMoves&);
+};
+
+// The influence quantities, in the budget's order.
+constexpr InfluenceEntry kInfluences[] = {
+    {"material: INPUT", curveMoves},  // the curve each calibration input moves
+    {"material", materialRest},       // the rest of the curve's uncertainty
+    {"scatter weight, scatter width", scatterComponents},
+    {"source-detector distance, pixel pitch", machineGeometry},
+    {"translation NAME", translations},
+    {"detector lag NAME", detectorLags},
+    {"normalisation NAME", normalisations},
+};
+
+}  // namespace
+
+std::vector<InfluenceMove> listInfluences(const ForwardModel& model, int fit_level, int level) {
+  const InfluenceSource source{model, model.inputs(), fit_level, level,
+                               model.materialIndices().empty()};
+  InfluenceMoves moves;
+  for (const InfluenceEntry& entry : kInfluences) entry.list(source, moves);
+  return moves;
+}
+
+}  // namespace xgauge::budget_internal

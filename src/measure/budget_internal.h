@@ -1,0 +1,124 @@
+// The uncertainty budget's steps (private to the budget's files; the
+// pipeline that runs them is estimateUncertainty, budget.cpp; the method is
+// docs/method.md, "Uncertainty"): the statistical covariance
+// (budget_covariance.cpp), the influence quantities (budget_influences.cpp),
+// how each influence's shift reaches the result (budget_propagation.cpp) and
+// the measurable combinations of dimensions (budget_combinations.cpp). Each
+// step takes what it reads as arguments and returns what it finds; nothing
+// else passes between them.
+#pragma once
+
+#include "least_squares.h"
+#include "xgauge/measure/uncertainty.h"
+
+#include <Eigen/Dense>
+
+#include <functional>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+namespace xgauge::budget_internal {
+
+// The covariance (budget_covariance.cpp) -------------------------------------
+
+// The fit's linearisation at the solution, inverted: the statistical part,
+// and what every influence's shift is propagated with.
+struct Covariance {
+  Eigen::VectorXd w;                  // the fit's weights (LinearizedFit::weights)
+  Eigen::MatrixXd project;            // onto the directions some radiograph sees
+  Eigen::MatrixXd a_inverse;          // pseudo-inverse of the projected A = J^T W J
+  std::vector<Eigen::VectorXd> null;  // the directions it drops (in unscaled parameters)
+  Eigen::MatrixXd statistical;        // the sandwich A^-1 B A^-1, small-sample corrected
+};
+
+// The radiographs of the fit's residual segments, in their order.
+std::vector<int> fitRadiographs(const LinearizedFit& fit);
+
+// A, the directions no radiograph sees taken out of it, its pseudo-inverse,
+// B and the sandwich, from the fit at theta over `radiographs`.
+Covariance statisticalCovariance(ForwardModel& model, std::span<const double> theta,
+                                 const LinearizedFit& fit, std::span<const int> radiographs);
+
+// The influence quantities (budget_influences.cpp) ---------------------------
+
+// How an influence's shift of the parameters is found (budget_propagation.cpp).
+enum class Propagation { kLinearised, kIterated, kReSolved };
+
+// A re-simulation with one influence moved by its standard uncertainty.
+struct Influence {
+  std::string name, quantity, unit;
+  double u = 0.0;               // standard uncertainty, in unit
+  Eigen::VectorXd delta_theta;  // the parameters' shift for q + u
+  // When the influence scales the rates of the file's curve (the material's
+  // rest): by how much, relative.
+  double curve_scale = 0.0;
+};
+
+// One entry of the budget's list of influences: the influence (its
+// delta_theta still empty), the model moved by its u and how its shift is
+// found; or, where `left_out` is not empty, why it is not propagated (a
+// note of the budget).
+struct InfluenceMove {
+  Influence influence;
+  Propagation how = Propagation::kLinearised;
+  // change(inputs, amount) moves the influence by amount * u; empty where
+  // the moved model takes the model's inputs as they are.
+  std::function<void(MeasurementInputs&, double)> change;
+  // The moved model's material curve; nullopt: the model's.
+  std::optional<ExponentialSum> curve;
+  std::string left_out;
+};
+
+// The model's influences in the order of the table of influence quantities
+// (budget_influences.cpp). `level`: the re-solves' (resolveLevel).
+std::vector<InfluenceMove> listInfluences(const ForwardModel& model, int fit_level, int level);
+
+// How a shift reaches the result (budget_propagation.cpp) --------------------
+
+// The pyramid level of the re-solves: about kResolveWidthPx wide, at least
+// the fit's.
+int resolveLevel(const ForwardModel& model, const LinearizedFit& fit);
+
+// Where the re-solves take their Jacobian from.
+JacobianKind reSolveJacobian(const ForwardModel& model);
+
+// What every propagation reads, held fixed: the unmoved model, the fit at
+// theta and its covariance.
+struct FitAtSolution {
+  ForwardModel& model;
+  std::span<const double> theta;
+  const LinearizedFit& fit;
+  const Covariance& covariance;
+  const std::vector<int>& radiographs;  // fitRadiographs
+  int level = 0;                        // of the re-solves (resolveLevel)
+  bool robust = false;                  // the job's loss is robust
+  JacobianKind jacobian_kind = JacobianKind::kForwardDifferences;  // of the re-solves
+};
+
+// Each influence of `moves` with its shift, in their order; a note in
+// `notes` for each one left out (a `left_out` entry, or a propagation that
+// failed).
+std::vector<Influence> propagateInfluences(const FitAtSolution& at,
+                                           const std::vector<InfluenceMove>& moves,
+                                           std::vector<std::string>& notes);
+
+// The combinations (budget_combinations.cpp) ---------------------------------
+
+// What the combinations are read from: the total covariance of the fit's
+// parameters and where the free dimensions are in it.
+struct CombinationInputs {
+  const ForwardModel& model;
+  std::span<const double> theta;
+  const std::vector<int>& free;              // ForwardModel::freeDimensionIndices
+  const std::vector<Eigen::Index>& column;   // of each free dimension in fit.indices
+  const Eigen::MatrixXd& total;              // every component's covariance
+  const std::vector<Eigen::VectorXd>& null;  // Covariance::null
+};
+
+// The drawing's combinations and the strongly correlated pairs of
+// dimensions, appended to budget.combinations (budget.dimensions filled).
+void addCombinations(const CombinationInputs& in, UncertaintyBudget& budget);
+
+}  // namespace xgauge::budget_internal

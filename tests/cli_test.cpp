@@ -265,7 +265,7 @@ class MeasureJob : public Cli {
   // sigma `noise` as a detector's (noise-free, the residual regions'
   // threshold, robust sigmas of the residual itself, finds the small
   // differences between this render's sampling and the fit's at every edge).
-  void renderCuboid(double noise) {
+  void renderCuboid(double noise, uint64_t seed = 7) {
     const CommandResult rendered =
         run("render " + kRoot + "/parts/cuboid.json --machine " + out("machine.json") +
             " --material " + out("material.json") +
@@ -274,7 +274,7 @@ class MeasureJob : public Cli {
             out("a.tif"));
     ASSERT_EQ(rendered.status, 0) << rendered.output;
     Image image = readTiff(out("a.tif"));
-    std::mt19937_64 rng(7);
+    std::mt19937_64 rng(seed);
     std::normal_distribution<double> gauss(0.0, noise);
     for (int y = 0; y < image.height(); ++y)
       for (int x = 0; x < image.width(); ++x)
@@ -609,8 +609,9 @@ TEST_F(MeasureJob, ExitStatusGivesTheVerdicts) {
   EXPECT_FALSE(size_x.contains("verdict"));  // no tolerance, no verdict
   auto verdict = [&](double nominal, double lower, double upper, const std::string& name) {
     const std::string tolerances = fmt::format(
-        R"(, "tolerances": {{"size_x": {{"nominal": {}, "lower": {}, "upper": {}}}}})", nominal,
-        lower, upper);
+        R"(, "unverified_verdicts": true,
+            "tolerances": {{"size_x": {{"nominal": {}, "lower": {}, "upper": {}}}}})",
+        nominal, lower, upper);
     const CommandResult r =
         run("measure " + job("", tolerances) + " -o " + out(name) + " -q --no-report");
     EXPECT_FALSE(fs::exists(out(name) + "/report.html"));
@@ -668,7 +669,7 @@ TEST_F(MeasureJob, AWrongPartModelIsNotMeasured) {
   // The same job with the right size_x measures, and its verdict is given.
   const std::string right =
       R"(, "dimensions": {"free": ["size_y", "size_z"], "fixed": {"size_x": 20}},
-         "tolerances": {"size_y": {"lower": -1, "upper": 1}})";
+         "tolerances": {"size_y": {"lower": -1, "upper": 1}}, "unverified_verdicts": true)";
   const CommandResult good = run("measure " + job("", right) + " -o " + out("right") + " -q");
   EXPECT_EQ(good.status, 0) << good.output;
   std::ifstream in_right(out("right") + "/result.json");
@@ -681,6 +682,85 @@ TEST_F(MeasureJob, AWrongPartModelIsNotMeasured) {
 // A misspelled key of the acceptance rule is an error, as every key is.
 TEST_F(MeasureJob, MisspelledAcceptanceKey) {
   expectJobFailure(job("", R"(, "acceptance": {"max_misfit": 3})"), "max_misfit");
+}
+
+}  // namespace
+}  // namespace xgauge
+
+namespace xgauge {
+namespace {
+
+// The method verified on a master (measure/verification.h): three noisy
+// radiographs of the 20 x 30 x 10 mm cuboid, certified at those values,
+// give the bias and repeatability; a fourth radiograph measured with the
+// verification gets the substitution's U and a verdict; the same job
+// without it says its U is unverified and gives no verdict (exit 2); with
+// another material the verification is refused, naming why.
+TEST_F(MeasureJob, AVerifiedMethodGivesVerdictsAnUnverifiedOneDoesNot) {
+  const std::string tolerance = R"("tolerances": {"size_y": {"lower": -1, "upper": 1}})";
+  nlohmann::json verify_job = {
+      {"master",
+       {{"certificate",
+         {{"size_x", {{"value", 20.0}, {"standard_uncertainty", 0.001}}},
+          {"size_y", {{"value", 30.0}, {"standard_uncertainty", 0.001}}},
+          {"size_z", {{"value", 10.0}, {"standard_uncertainty", 0.001}}}}}}},
+      {"measurements", nlohmann::json::array()}};
+  for (uint64_t seed = 1; seed <= 3; ++seed) {
+    renderCuboid(0.005, seed);
+    const std::string image = fmt::format("m{}.tif", seed);
+    fs::copy_file(out("a.tif"), out(image), fs::copy_options::overwrite_existing);
+    const std::string name = fmt::format("m{}.json", seed);
+    fs::copy_file(job("", "", image), out(name), fs::copy_options::overwrite_existing);
+    verify_job["measurements"].push_back(out(name));
+  }
+  const CommandResult verified =
+      run("verify " + write("verify.json", verify_job.dump()) + " -o " + out("verified") + " -q");
+  ASSERT_EQ(verified.status, 0) << verified.output;
+  std::ifstream file(out("verified") + "/verification.json");
+  const nlohmann::json verification = nlohmann::json::parse(file);
+  ASSERT_EQ(verification.at("dimensions").size(), 3u);
+  const nlohmann::json& y = verification.at("dimensions").at(1);
+  EXPECT_EQ(y.at("name"), "size_y");
+  EXPECT_EQ(y.at("measurements"), 3);
+  EXPECT_NEAR(y.at("bias").get<double>(), y.at("mean").get<double>() - 30.0, 1e-12);
+
+  renderCuboid(0.005, 11);  // the workpiece
+  const CommandResult r =
+      run("measure " + job("", R"(, "verification": "verified/verification.json", )" + tolerance) +
+          " -o " + out("workpiece") + " -q");
+  EXPECT_EQ(r.status, 0) << r.output;
+  std::ifstream in(out("workpiece") + "/result.json");
+  const nlohmann::json result = nlohmann::json::parse(in);
+  const nlohmann::json& d = result.at("dimensions").at(1);
+  ASSERT_TRUE(d.at("verified").get<bool>()) << d.dump();
+  EXPECT_EQ(d.at("verdict"), "conforms");
+  const nlohmann::json& s = d.at("verification");
+  EXPECT_NEAR(d.at("value_mm").get<double>(),
+              s.at("fitted_value").get<double>() - y.at("bias").get<double>(), 1e-12);
+  const double u =
+      std::sqrt(std::pow(y.at("u_cal").get<double>(), 2) + std::pow(y.at("u_p").get<double>(), 2) +
+                std::pow(y.at("u_b").get<double>(), 2) + std::pow(s.at("u_w").get<double>(), 2));
+  EXPECT_NEAR(d.at("expanded_uncertainty").get<double>(), 2.0 * u, 1e-12);
+
+  const CommandResult unverified =
+      run("measure " + job("", ", " + tolerance) + " -o " + out("unverified") + " -q");
+  EXPECT_EQ(unverified.status, 2) << unverified.output;
+  EXPECT_NE(unverified.output.find("unverified"), std::string::npos) << unverified.output;
+  std::ifstream in_unverified(out("unverified") + "/result.json");
+  const nlohmann::json plain = nlohmann::json::parse(in_unverified);
+  EXPECT_FALSE(plain.at("dimensions").at(1).at("verified").get<bool>());
+  EXPECT_FALSE(plain.at("dimensions").at(1).contains("verdict"));
+
+  write("material2.json",
+        R"({"model": "exponential_sum", "terms": [{"weight": 1, "mu_per_mm": 0.0500001}]})");
+  std::ifstream job_in(job("", R"(, "verification": "verified/verification.json")"));
+  nlohmann::json other = nlohmann::json::parse(job_in);
+  other["material"] = "material2.json";
+  const CommandResult refused =
+      run("measure " + write("other.json", other.dump()) + " -o " + out("refused") + " -q");
+  EXPECT_EQ(refused.status, 1) << refused.output;
+  EXPECT_NE(refused.output.find("another material"), std::string::npos) << refused.output;
+  EXPECT_FALSE(fs::exists(out("refused") + "/result.json"));
 }
 
 }  // namespace

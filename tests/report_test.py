@@ -100,7 +100,7 @@ def make_reports(xgauge, source, work):
         "radiographs": [dict(name="t00", image="cuboid/t00.tif", **frames),
                         dict(name="t02", image="cuboid/t02.tif", pattern="translated", reference="t00",
                              distance_mm=20.0, **frames)],
-        "pose_bounds": bounds,
+        "pose_bounds": bounds, "unverified_verdicts": True,
         "tolerances": {"size_x": {"nominal": 20.0, "lower": -1.0, "upper": 1.0},
                        "size_y": {"nominal": 31.0, "lower": -0.05, "upper": 0.05},
                        "size_z": {"nominal": 10.0, "lower": -0.01, "upper": 0.01}}})
@@ -139,6 +139,9 @@ def check_measurement(browser, result):
         else:
             expected = ""
         check(u == expected, f"measurement: {d['name']} U shows {u!r}, expected {expected!r}")
+        basis = text_of(browser, row + " td.basis")
+        expected = ("verified" if d["verified"] else "unverified") if d["free"] else ""
+        check(basis == expected, f"measurement: {d['name']} U is {basis!r}, expected {expected!r}")
         verdict = text_of(browser, row + " td.verdict")
         check(verdict == d.get("verdict", ""), f"measurement: {d['name']} verdict {verdict!r} != {d.get('verdict')!r}")
     verdicts = {d.get("verdict") for d in result["dimensions"]} - {None}

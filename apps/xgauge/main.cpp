@@ -7,6 +7,7 @@
 #include "render_command.h"
 #include "simulate_command.h"
 #include "study_command.h"
+#include "verify_command.h"
 
 #include "xgauge/core/error.h"
 #include "xgauge/core/log.h"
@@ -58,6 +59,8 @@ int main(int argc, char** argv) {
   xgauge::cli::addStudyCommand(app, study);
   xgauge::cli::SimulateArguments simulate;
   xgauge::cli::addSimulateCommand(app, simulate);
+  xgauge::cli::VerifyArguments verify;
+  xgauge::cli::addVerifyCommand(app, verify);
 
   try {
     app.parse(argc, argv);
@@ -78,6 +81,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("measure")) return xgauge::cli::runMeasure(measure);
     if (app.got_subcommand("material")) xgauge::cli::runMaterial(material);
     if (app.got_subcommand("study")) xgauge::cli::runStudyCommand(study);
+    if (app.got_subcommand("verify")) xgauge::cli::runVerify(verify);
     if (app.got_subcommand("calibrate")) xgauge::cli::runCalibrate(app, calibrate_wedge, calibrate_part);
   } catch (const xgauge::Error& e) {
     std::fprintf(stderr, "xgauge: error: %s\n", e.what());

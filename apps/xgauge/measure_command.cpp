@@ -51,10 +51,12 @@ int runMeasure(const MeasureArguments& args) {
   std::vector<Image> simulated = simulateRadiographs(model, result.theta);
   takeFullSizeLosses(model, simulated, result);
 
-  bool toleranced = false;
+  bool toleranced = false, withheld = false;
   std::vector<Decision> decisions;
-  for (const auto& d : result.dimensions)
+  for (const auto& d : result.dimensions) {
     if (d.decision) toleranced = true, decisions.push_back(*d.decision);
+    withheld |= d.tolerance && !d.decision;  // an unverified U: no verdict
+  }
   const bool measured = result.status == MeasurementStatus::kMeasured;
   std::string table;
   if (!measured) {
@@ -64,8 +66,8 @@ int runMeasure(const MeasureArguments& args) {
         result.attempts);
     for (const auto& f : result.check.failures) table += "  - " + f + "\n";
   }
-  table += fmt::format("{:<18} {:>10} {:>9}", "dimension", measured ? "measured" : "rejected",
-                       "U (k=2)");
+  table += fmt::format("{:<18} {:>10} {:>9} {:<10}", "dimension",
+                       measured ? "measured" : "rejected", "U (k=2)", " U is");
   if (toleranced) table += fmt::format(" {:>19} {:<16}", "tolerance zone", " verdict");
   if (truth) table += fmt::format(" {:>10} {:>10}", "true", "error");
   table += "\n";
@@ -74,6 +76,7 @@ int runMeasure(const MeasureArguments& args) {
                          !d.free                  ? ""
                          : d.expanded_uncertainty ? fmt::format("{:.4f}", *d.expanded_uncertainty)
                                                   : "n/a");
+    table += fmt::format(" {:<10}", !d.free ? "" : d.verified ? " verified" : " unverified");
     if (toleranced)
       table += d.tolerance ? fmt::format(" [{:>8.4f},{:>9.4f}]  {:<16}", d.tolerance->lowerLimit(),
                                          d.tolerance->upperLimit(),
@@ -116,7 +119,10 @@ int runMeasure(const MeasureArguments& args) {
   writeFileAtomically(std::filesystem::path(args.output) / "measure.log", log.str() + table);
   outputs.commit();
   spdlog::info("wrote {}/result.json", args.output);
-  return measured ? exitCodeFor(decisions) : kExitCouldNotMeasure;
+  if (!measured) return kExitCouldNotMeasure;
+  // A tolerance whose verdict was withheld (its U unverified) cannot be
+  // taken as conforming.
+  return std::max(exitCodeFor(decisions), withheld ? kExitInconclusive : kExitConforms);
 }
 
 void addMaterialCommand(CLI::App& app, MaterialArguments& args) {

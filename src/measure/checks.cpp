@@ -63,8 +63,10 @@ std::optional<Vec3> middleOfPath(const TriangleMesh& mesh, const Pose& pose, con
 }  // namespace
 
 SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
-                           const LinearizedFit& fit, const AcceptanceRule& rule) {
+                           const LinearizedFit& fit, const AcceptanceRule& rule,
+                           std::vector<char>* region_pixels) {
   SelfCheck check;
+  if (region_pixels) region_pixels->assign(static_cast<size_t>(fit.residuals.size()), 0);
   // Parameters at a bound: the true value may lie beyond it, and the fit's
   // minimum is not one (a pose in a wrong basin often ends at a bound).
   const ParameterLayout& layout = model.parameters();
@@ -230,6 +232,11 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
             }
         }
         if (strong < kRegionMinPixels) continue;
+        if (region_pixels)
+          for (int y = ymin; y <= ymax; ++y)
+            for (int x = xmin; x <= xmax; ++x)
+              if (label[static_cast<size_t>(y * roi.width + x)] == next)
+                (*region_pixels)[segment.first + static_cast<size_t>(y * roi.width + x)] = 1;
         ResidualRegion region;
         region.radiograph = spec.name;
         region.centre_px = Vec2((roi.x + sx / sw) * scale, (roi.y + sy / sw) * scale);

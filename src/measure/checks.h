@@ -12,7 +12,10 @@ namespace xgauge {
 // Checks the solution theta of `model` from the fit's linearisation there
 // (residuals over every radiograph at the fit's level); what `rule` makes a
 // failure goes into SelfCheck::failures.
+// `region_pixels` (optional) gets one flag per residual of the fit: 1 where
+// the pixel belongs to a reported residual region.
 SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
-                           const LinearizedFit& fit, const AcceptanceRule& rule);
+                           const LinearizedFit& fit, const AcceptanceRule& rule,
+                           std::vector<char>* region_pixels = nullptr);
 
 }  // namespace xgauge

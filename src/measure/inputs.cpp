@@ -170,6 +170,11 @@ MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
     }
     material.finish();
   }
+  if (!in.job.verification_file.empty()) {
+    const ConfigNode verification = loadInputConfig(in.job.verification_file, in.sha256);
+    in.verification = Verification::fromConfig(verification, in.job.verification_file);
+    verification.finish();
+  }
   in.radiographs = loadRadiographs(in.job, in.machine, in.sha256);
   return in;
 }

@@ -272,6 +272,10 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
     if (auto v = acceptance->find("fail_at_bound")) rule.fail_at_bound = v->as<bool>();
     if (auto v = acceptance->find("retries")) rule.retries = static_cast<int>(v->integer(0, 10));
   }
+  if (root.has("verification"))
+    job.verification_file = folder / root.get<std::string>("verification");
+  if (auto unverified = root.find("unverified_verdicts"))
+    job.unverified_verdicts = unverified->as<bool>();
   if (auto seed = root.find("seed"))
     job.seed = static_cast<uint64_t>(seed->integer(0, int64_t{1} << 53));
   return job;

@@ -9,6 +9,7 @@
 #include "xgauge/measure/schedule.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 #include <tbb/parallel_for.h>
 
@@ -286,7 +287,21 @@ void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementRe
   result.uncertainty = estimateUncertainty(model, theta, fit);
   spdlog::debug("uncertainty: the budget in {:.2f} s", secondsSince(budget_start));
   const auto checks_start = std::chrono::steady_clock::now();
-  result.check = checkMeasurement(model, theta, fit, model.job().acceptance);
+  std::vector<char> region_pixels;
+  result.check = checkMeasurement(model, theta, fit, model.job().acceptance, &region_pixels);
+  // Where the part differs from its model, U includes how far the
+  // dimensions move without those pixels.
+  addMisfitTerm(model, fit, region_pixels, result.uncertainty);
+  double largest = 0.0;
+  std::string moved;
+  for (const DimensionUncertainty& u : result.uncertainty.dimensions)
+    for (const UncertaintyComponent& c : u.components)
+      if (c.name == "misfit" && c.contribution > largest) largest = c.contribution, moved = u.name;
+  if (!moved.empty())
+    result.check.warnings.push_back(fmt::format(
+        "the {} residual region(s) left out move the dimensions by up to {:.4f} ({}): each "
+        "dimension's U includes its shift as the component \"misfit\"",
+        result.check.regions.size(), largest, moved));
   spdlog::debug("uncertainty: the self-checks in {:.2f} s", secondsSince(checks_start));
   for (const std::string& note : result.uncertainty.notes) spdlog::info("uncertainty: {}", note);
   for (const std::string& warning : result.check.warnings) spdlog::warn("{}", warning);
@@ -294,17 +309,54 @@ void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementRe
                std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count());
 }
 
-// Each free dimension's U from the budget, and its verdict where it has a
-// tolerance (measure/tolerance.h).
+// Each free dimension's U: by substitution where the job's verification
+// covers it (measure/verification.h; refused with an Error outside its
+// conditions), else the budget's, unverified. Then its verdict where it has
+// a tolerance (measure/tolerance.h), if its U is verified or the job
+// accepts unverified verdicts.
 void decideConformity(const ForwardModel& model, MeasurementResult& result) {
-  const std::map<std::string, Tolerance> tolerances = tolerancesFor(model.job(), model.part());
+  const MeasurementJob& job = model.job();
+  const MeasurementInputs& inputs = model.inputs();
+  const Verification* verification = inputs.verification ? &*inputs.verification : nullptr;
+  if (verification) {
+    auto digest = [&](const std::filesystem::path& file) {
+      const auto it = inputs.sha256.find(file.string());
+      if (it == inputs.sha256.end())
+        fail(
+            "{}: a verification needs the job's part, machine and material files ({} was not "
+            "read)",
+            job.file.string(), file.string());
+      return it->second;
+    };
+    std::vector<double> magnifications;
+    for (const MeasuredRadiograph& r : result.radiographs)
+      magnifications.push_back(r.magnification);
+    checkVerificationConditions(*verification, digest(job.part_file), digest(job.machine_file),
+                                digest(job.material_file), magnifications);
+  }
+  const std::map<std::string, Tolerance> tolerances = tolerancesFor(job, model.part());
+  std::vector<std::string> withheld;
   for (MeasuredDimension& d : result.dimensions) {
+    d.fitted_value = d.value;
     if (!d.free) continue;
+    const DimensionUncertainty* own = nullptr;
     for (const DimensionUncertainty& u : result.uncertainty.dimensions)
-      if (u.name == d.name && u.identifiable) d.expanded_uncertainty = u.expanded;
+      if (u.name == d.name && u.identifiable) own = &u;
+    if (own) d.expanded_uncertainty = d.own_expanded_uncertainty = own->expanded;
+    const VerifiedDimension* verified = verification ? verification->find(d.name) : nullptr;
+    if (own && verified) {
+      d.substitution = substitute(d.value, own->combined, *verified, verification->coverage_factor);
+      d.value = d.substitution->value;
+      d.expanded_uncertainty = d.substitution->expanded;
+      d.verified = true;
+    }
     const auto t = tolerances.find(d.name);
     if (t == tolerances.end()) continue;
     d.tolerance = t->second;
+    if (!d.verified && !job.unverified_verdicts) {
+      withheld.push_back(d.name);
+      continue;
+    }
     d.decision = decide(d.value, d.expanded_uncertainty.value_or(kInf), t->second);
     if (d.decision->cannot_decide)
       result.check.warnings.push_back(fmt::format(
@@ -312,6 +364,12 @@ void decideConformity(const ForwardModel& model, MeasurementResult& result) {
           "reliably decide conformity",
           d.name, d.expanded_uncertainty.value_or(kInf), t->second.width() / 3.0));
   }
+  if (!withheld.empty())
+    result.check.warnings.push_back(fmt::format(
+        "no verdict on {}: their U is unverified (no verification of the method on a master "
+        "covers them; measure a master with `xgauge verify` and name it in the job's "
+        "\"verification\", or set \"unverified_verdicts\": true to judge by the model's U)",
+        fmt::join(withheld, ", ")));
 }
 
 // One run of the pipeline from theta: the poses, the joint fit, the budget
@@ -373,8 +431,11 @@ MeasurementResult runPipeline(ForwardModel& model, std::vector<double> theta,
       loss = model.loss(theta, 0, 2, only).value_or(kInf);
     }
     const RadiographSpec& spec = model.spec(r);
+    const Pose pose = model.pose(theta, r);
+    const double d = model.machine().source_detector_distance_mm;
+    const double magnification = d / (d - pose.apply(model.referenceCentre()).z());
     result.radiographs.push_back(
-        {spec.name, std::string(acquisitionName(spec.pattern)), model.pose(theta, r), loss});
+        {spec.name, std::string(acquisitionName(spec.pattern)), pose, loss, magnification});
     result.total_loss += loss;
   }
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();

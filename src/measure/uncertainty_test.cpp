@@ -710,10 +710,35 @@ TEST_F(Uncertainty, AResidualRegionIsReportedWhereTheImageDiffersAndNowhereElse)
   EXPECT_LT((region.centre_px - Vec2(70.0, 85.0)).norm(), 1.0);
   EXPECT_EQ(region.sign, "brighter");
   EXPECT_TRUE(region.part_mm.has_value());
-  bool warned = false;
-  for (const auto& w : found.check.warnings)
+  bool warned = false, says_misfit = false;
+  for (const auto& w : found.check.warnings) {
     warned |= w.find("residual region") != std::string::npos;
+    says_misfit |= w.find("component \"misfit\"") != std::string::npos;
+  }
   EXPECT_TRUE(warned);
+  EXPECT_TRUE(says_misfit);
+  // The misfit term (budget.h, addMisfitTerm): each identifiable dimension's
+  // shift without the region's pixels is a component of its U, and u_c is
+  // still the root sum of squares of the components; no regions, no term.
+  auto misfitOf = [](const DimensionUncertainty& u) -> const UncertaintyComponent* {
+    for (const UncertaintyComponent& c : u.components)
+      if (c.name == "misfit") return &c;
+    return nullptr;
+  };
+  int with_term = 0;
+  for (const DimensionUncertainty& u : found.uncertainty.dimensions) {
+    if (!u.identifiable) continue;
+    const UncertaintyComponent* m = misfitOf(u);
+    ASSERT_NE(m, nullptr) << u.name;
+    ++with_term;
+    double squares = 0.0;
+    for (const UncertaintyComponent& c : u.components) squares += c.contribution * c.contribution;
+    EXPECT_NEAR(u.combined, std::sqrt(squares), 1e-12 * (1.0 + u.combined)) << u.name;
+    EXPECT_LT(m->contribution, 0.5) << u.name;  // a 3 px spot moves nothing by half a mm
+  }
+  EXPECT_GT(with_term, 0);
+  for (const DimensionUncertainty& u : none.uncertainty.dimensions)
+    EXPECT_EQ(misfitOf(u), nullptr) << u.name;
 }
 
 // A dimension held 1 mm from the truth by its bounds is no measurement

@@ -50,6 +50,21 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                            {"lower", d.tolerance->lower},
                            {"upper", d.tolerance->upper},
                            {"source", d.tolerance->source}};
+    if (d.free) item["verified"] = d.verified;
+    if (const auto& s = d.substitution) {
+      const VerifiedDimension* v = model.inputs().verification->find(d.name);
+      item["verification"] = {
+          {"fitted_value", d.fitted_value},
+          {"bias", v->bias},
+          {"u_cal", v->u_cal},
+          {"u_p", v->u_p},
+          {"u_b", v->u_b},
+          {"u_w", s->u_w},
+          {"combined_standard_uncertainty", s->combined},
+          {"own_expanded_uncertainty", d.own_expanded_uncertainty
+                                           ? nlohmann::json(*d.own_expanded_uncertainty)
+                                           : nlohmann::json(nullptr)}};
+    }
     if (d.decision) {
       item["verdict"] = std::string(verdictName(d.decision->verdict));
       item["cannot_decide"] = d.decision->cannot_decide;
@@ -146,6 +161,7 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                            {"pattern", m.pattern},
                            {"pose", poseToJson(m.pose)},
                            {"loss", m.loss},
+                           {"magnification", m.magnification},
                            {"roi", {roi.x, roi.y, roi.width, roi.height}},
                            {"repaired_pixels", rad.repaired_pixels},
                            {"image", spec.image.string()}});
@@ -182,6 +198,9 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
           {"status", std::string(measurementStatusName(result.status))},
           {"failures", result.check.failures},
           {"attempts", result.attempts},
+          {"verification", job.verification_file.empty()
+                               ? nlohmann::json(nullptr)
+                               : nlohmann::json(job.verification_file.string())},
           {"schedule", scheduleName(job.schedule)},
           {"loss", lossKindName(job.loss)},
           {measured ? "dimensions" : "rejected_dimensions", dims},

@@ -290,6 +290,13 @@ MeasurementInputs studyRunInputs(const nlohmann::json& job, const StudyInputs& i
   in.material = inputs.material;
   for (const RadiographSpec& spec : in.job.radiographs) in.radiographs.push_back(shots.get(spec));
   in.sha256 = shots.sha256();
+  for (const auto& [file, digest] : inputs.file_sha256) in.sha256[file] = digest;
+  if (!in.job.verification_file.empty()) {
+    const ConfigNode verification = ConfigNode::loadFile(in.job.verification_file);
+    in.sha256[in.job.verification_file.string()] = verification.sha256();
+    in.verification = Verification::fromConfig(verification, in.job.verification_file);
+    verification.finish();
+  }
   return in;
 }
 
@@ -401,7 +408,7 @@ StudySummary runStudy(const StudyOptions& options) {
 
   // The part and the machine from the dataset, the material from the
   // settings or fitted, each radiograph prepared once for every run.
-  const StudyInputs inputs = prepareStudyInputs(truth, settings, options.settings);
+  StudyInputs inputs = prepareStudyInputs(truth, settings, options.settings);
   // Without a scatter of their own, the runs take the one the material's
   // calibration found, as a measurement job does (measure/inputs.cpp).
   if (!settings.contains("scatter") && inputs.material_scatter)
@@ -414,8 +421,13 @@ StudySummary runStudy(const StudyOptions& options) {
   // Records, so that every run's job.json can be measured again by hand.
   const fs::path machine_file = options.output / "machine.json";
   const fs::path material_file = options.output / "material.json";
-  writeFileAtomically(machine_file, truth.machine.dump(2) + "\n");
-  writeFileAtomically(material_file, materialRecord(inputs).dump(2) + "\n");
+  const std::string machine_text = truth.machine.dump(2) + "\n";
+  const std::string material_text = materialRecord(inputs).dump(2) + "\n";
+  writeFileAtomically(machine_file, machine_text);
+  writeFileAtomically(material_file, material_text);
+  inputs.file_sha256[fs::absolute(truth.part_file).string()] = sha256Hex(readText(truth.part_file));
+  inputs.file_sha256[fs::absolute(machine_file).string()] = sha256Hex(machine_text);
+  inputs.file_sha256[fs::absolute(material_file).string()] = sha256Hex(material_text);
 
   std::vector<Combination> runs = combinations(truth, options.combinations);
   if (options.limit > 0 && static_cast<size_t>(options.limit) < runs.size())
@@ -427,6 +439,11 @@ StudySummary runStudy(const StudyOptions& options) {
   std::vector<std::string> free_dimensions;
   for (const auto& c : runs) {
     jobs.push_back(studyJob(settings, truth, c.shots, c.id, machine_file, material_file));
+    // A verification named relative to the settings file, as every run's
+    // job.json records it: absolutely.
+    if (const auto v = settings.find("verification"); v != settings.end() && v->is_string())
+      jobs.back()["verification"] =
+          fs::absolute(options.settings.parent_path() / v->get<std::string>()).string();
     const ConfigNode root = ConfigNode::fromJson(jobs.back(), options.settings.string());
     const MeasurementJob job =
         MeasurementJob::fromConfig(root, options.settings, *inputs.part, true);

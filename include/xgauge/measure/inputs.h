@@ -12,6 +12,7 @@
 #include "xgauge/material/exponential_sum.h"
 #include "xgauge/material/scatter_curves.h"
 #include "xgauge/measure/job.h"
+#include "xgauge/measure/verification.h"
 #include "xgauge/xray/machine.h"
 
 #include <filesystem>
@@ -63,6 +64,8 @@ struct MeasurementInputs {
   // scatter from the material's calibration (no "scatter" of its own) and
   // the material file says: the budget then moves both together.
   std::optional<ScatterCurves> scatter_curves;
+  // The job's verification, when it names one.
+  std::optional<Verification> verification;
   // One per job.radiographs entry, in its order.
   std::vector<std::shared_ptr<const PreparedRadiograph>> radiographs;
   // Every file read, as given in the job (or its folder), with its SHA-256.

@@ -52,6 +52,12 @@
 //                      AcceptanceRule): {"max_misfit_ratio": 1 .. 1000, default 4;
 //                      "max_region_share": 0 .. 1, default 0.05; "fail_at_bound": bool,
 //                      default true; "retries": 0 .. 10, default 2}
+//   verification       optional: a verification file (`xgauge verify`,
+//                      measure/verification.h): free dimensions it verified are
+//                      corrected by its bias and get U by substitution
+//   unverified_verdicts
+//                      optional, default false: give verdicts on tolerances with a
+//                      U no verification backs (the model budget's alone)
 //   seed               optional, default 1
 #pragma once
 
@@ -122,6 +128,8 @@ struct MeasurementJob {
   LossKind loss = LossKind::kMeanAbsolute;
   MaterialRefinement refine_material = MaterialRefinement::kNone;
   AcceptanceRule acceptance;
+  std::filesystem::path verification_file;  // empty: unverified
+  bool unverified_verdicts = false;
   uint64_t seed = 1;
 
   // Reads a parsed job file whose part model `part` the caller has loaded

@@ -47,13 +47,22 @@ struct MeasuredDimension {
   std::optional<double> expanded_uncertainty;
   std::optional<Tolerance> tolerance;
   std::optional<Decision> decision;
+  // With the job's verification (measure/verification.h) and this dimension
+  // in it: `value` is corrected by the method's bias and
+  // expanded_uncertainty is the substitution's U; the fit's own value and
+  // the model budget's U are kept here. Without: an unverified U.
+  bool verified = false;
+  std::optional<Substitution> substitution;
+  double fitted_value = 0.0;
+  std::optional<double> own_expanded_uncertainty;
 };
 
 struct MeasuredRadiograph {
   std::string name;
   std::string pattern;
   Pose pose;
-  double loss = 0.0;  // final loss at full size
+  double loss = 0.0;           // final loss at full size
+  double magnification = 0.0;  // of the part's centre (its bounding box's), D / (D - z)
 };
 
 // Whether a fit is a measurement (measure/self_check.h, AcceptanceRule).

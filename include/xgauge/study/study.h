@@ -98,6 +98,10 @@ struct StudyInputs {
   // from the material, as a measurement job does (measure/inputs.h), and
   // its budget moves it together with the curve when the file says how.
   std::optional<MaterialScatter> material_scatter;
+  // The SHA-256 of the files every run's job names (the part model, and
+  // where runStudy wrote them, the machine and the material), keyed as the
+  // jobs name them: a run's verification holds only for the same bytes.
+  std::map<std::string, std::string> file_sha256;
 };
 // The material as the study records it (material.json in its folder, which
 // every run's job.json names): the curve and the scatter it carries.

@@ -253,7 +253,7 @@
       root.append(el('div', { class: 'warnings' }, el('strong', {}, 'Warnings'),
         el('ul', {}, general_warnings.map((w) => el('li', {}, w)))));
 
-    const headers = ['Dimension', 'Nominal', 'Measured', 'Deviation', 'Tolerance zone', 'U (k = 2)', 'Verdict'];
+    const headers = ['Dimension', 'Nominal', 'Measured', 'Deviation', 'Tolerance zone', 'U (k = 2)', 'U is', 'Verdict'];
     if (truth) headers.push('True', 'Error');
     headers.push('Notes');
     const rows = dimensions.map((d) => {
@@ -269,6 +269,10 @@
           : ''),
         el('td', { class: 'num u', 'data-u': isNum(d.expanded_uncertainty) ? d.expanded_uncertainty : null },
           !d.free ? '' : isNum(d.expanded_uncertainty) ? fixed(d.expanded_uncertainty, 4) : 'not identifiable'),
+        // Verified: by substitution on a calibrated master (docs/method.md,
+        // "Verification on a master"); unverified: the model's budget alone.
+        el('td', { class: 'basis' + (d.free && !d.verified ? ' unverified' : '') },
+          !d.free ? '' : d.verified ? 'verified' : 'unverified'),
         el('td', { class: 'verdict ' + (verdictClass[d.verdict] || '') }, d.verdict || ''),
       ];
       if (truth) {
@@ -280,7 +284,9 @@
     });
     root.append(section('Dimensions', table(headers, rows, { id: 'dimensions' }),
       el('p', { class: 'note' }, 'Values in mm (° for angles). U is the expanded uncertainty with coverage factor 2 ' +
-        '(about 95 %), from the budget below. Deviation = measured − nominal.')));
+        '(about 95 %): verified, by substitution on a calibrated master of this part type (ISO 15530-3), the value ' +
+        'corrected by the method\'s bias found there; unverified, from the model\'s budget below alone, which no ' +
+        'measurement of a known part has checked. Deviation = measured − nominal.')));
 
     const u = (measured ? result.uncertainty : result.rejected_uncertainty) || {};
     if ((u.combinations || []).length) {

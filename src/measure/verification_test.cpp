@@ -1,0 +1,126 @@
+// The substitution of ISO 15530-3 (measure/verification.h) against a worked
+// example computed by hand, the verification file's round trip, and the
+// refusals outside its conditions.
+#include "xgauge/measure/verification.h"
+
+#include "xgauge/core/error.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <string>
+
+namespace xgauge {
+namespace {
+
+// A master certified at 10.000 mm (u_cal 0.002 mm) measured four times:
+// 10.012, 10.018, 10.009, 10.015 mm, with own combined standard
+// uncertainties 0.004, 0.004, 0.005, 0.003 mm. By hand:
+//   mean = 40.054 / 4 = 10.0135;  b = 0.0135
+//   deviations -0.0015, +0.0045, -0.0045, +0.0015; squares sum 45e-6
+//   u_p = sqrt(45e-6 / 3) = sqrt(15e-6) = 0.00387298
+//   u_b = u_p / sqrt(4) = 0.00193649
+//   own on the master: (0.004 + 0.004 + 0.005 + 0.003) / 4 = 0.004
+// A workpiece measured 10.030 mm with its own u 0.005 mm:
+//   y' = 10.030 - 0.0135 = 10.0165
+//   u_w = sqrt(0.005^2 - 0.004^2) = 0.003
+//   u^2 = 4e-6 + 15e-6 + 3.75e-6 + 9e-6 = 31.75e-6;  u = 0.00563471
+//   U = 2 u = 0.01126943
+std::vector<MasterMeasurement> fourMeasurements() {
+  const double y[] = {10.012, 10.018, 10.009, 10.015}, own[] = {0.004, 0.004, 0.005, 0.003};
+  const double magnification[] = {2.01, 2.03, 1.99, 2.00};
+  std::vector<MasterMeasurement> out;
+  for (int i = 0; i < 4; ++i) {
+    MasterMeasurement m;
+    m.job = "m" + std::to_string(i) + ".json";
+    m.dimensions["width"] = {y[i], own[i]};
+    m.dimensions["not_certified"] = {1.0, 0.1};
+    m.magnifications = {magnification[i], magnification[i] + 0.005};
+    out.push_back(m);
+  }
+  return out;
+}
+
+VerificationConditions someConditions() {
+  VerificationConditions c;
+  c.part_file = "part.json", c.part_sha256 = std::string(64, 'a');
+  c.machine_file = "machine.json", c.machine_sha256 = std::string(64, 'b');
+  c.material_file = "material.json", c.material_sha256 = std::string(64, 'c');
+  return c;
+}
+
+TEST(Verification, TheSubstitutionMatchesAWorkedExampleByHand) {
+  const Verification v =
+      verifyOnMaster(fourMeasurements(), {{"width", {10.000, 0.002}}}, someConditions());
+  ASSERT_EQ(v.dimensions.size(), 1u);  // the uncertified dimension is not verified
+  const VerifiedDimension& d = v.dimensions.front();
+  EXPECT_EQ(d.measurements, 4);
+  EXPECT_NEAR(d.mean, 10.0135, 1e-12);
+  EXPECT_NEAR(d.bias, 0.0135, 1e-12);
+  EXPECT_NEAR(d.u_p, 0.0038729833, 1e-9);
+  EXPECT_NEAR(d.u_b, 0.0019364917, 1e-9);
+  EXPECT_NEAR(d.own_master, 0.004, 1e-12);
+  EXPECT_DOUBLE_EQ(v.conditions.magnification[0], 1.99);
+  EXPECT_DOUBLE_EQ(v.conditions.magnification[1], 2.035);
+
+  const Substitution s = substitute(10.030, 0.005, d, 2.0);
+  EXPECT_NEAR(s.value, 10.0165, 1e-12);
+  EXPECT_NEAR(s.u_w, 0.003, 1e-12);
+  EXPECT_NEAR(s.combined, 0.0056347138, 1e-9);
+  EXPECT_NEAR(s.expanded, 0.0112694277, 1e-9);
+  // A workpiece the model explains better than the master adds no u_w.
+  EXPECT_EQ(substitute(10.030, 0.003, d, 2.0).u_w, 0.0);
+}
+
+TEST(Verification, TheFileReadsBackAsWritten) {
+  const Verification v =
+      verifyOnMaster(fourMeasurements(), {{"width", {10.000, 0.002}}}, someConditions());
+  const Verification back = Verification::fromConfig(
+      ConfigNode::fromJson(v.toJson(), "verification.json"), "verification.json");
+  ASSERT_EQ(back.dimensions.size(), 1u);
+  EXPECT_EQ(back.dimensions[0].bias, v.dimensions[0].bias);
+  EXPECT_EQ(back.dimensions[0].u_p, v.dimensions[0].u_p);
+  EXPECT_EQ(back.conditions.machine_sha256, v.conditions.machine_sha256);
+  EXPECT_EQ(back.conditions.magnification, v.conditions.magnification);
+  ASSERT_EQ(back.measurements.size(), 4u);
+  EXPECT_EQ(back.measurements[2].dimensions.at("width").first, 10.009);
+  // A bias that is not mean - calibrated is a corrupt file.
+  nlohmann::json broken = v.toJson();
+  broken["dimensions"][0]["bias"] = 0.02;
+  EXPECT_THROW(Verification::fromConfig(ConfigNode::fromJson(broken, "v.json"), "v.json"), Error);
+}
+
+TEST(Verification, IsRefusedOutsideItsConditions) {
+  const Verification v =
+      verifyOnMaster(fourMeasurements(), {{"width", {10.000, 0.002}}}, someConditions());
+  const std::string a(64, 'a'), b(64, 'b'), c(64, 'c'), other(64, 'd');
+  EXPECT_NO_THROW(checkVerificationConditions(v, a, b, c, {2.0, 2.02}));
+  auto refusal = [&](const std::string& part, const std::string& machine,
+                     const std::string& material, std::vector<double> magnifications) {
+    try {
+      checkVerificationConditions(v, part, machine, material, magnifications);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  EXPECT_NE(refusal(other, b, c, {2.0}).find("another part model"), std::string::npos);
+  EXPECT_NE(refusal(a, other, c, {2.0}).find("another machine"), std::string::npos);
+  EXPECT_NE(refusal(a, b, other, {2.0}).find("another material"), std::string::npos);
+  // 1.99 .. 2.035 widened by 2 %: 1.9502 .. 2.0757.
+  EXPECT_EQ(refusal(a, b, c, {1.951, 2.075}), "accepted");
+  EXPECT_NE(refusal(a, b, c, {2.0, 2.08}).find("magnification 2.080 lies outside"),
+            std::string::npos);
+  EXPECT_NE(refusal(a, b, c, {1.95}).find("lies outside"), std::string::npos);
+}
+
+TEST(Verification, NeedsEnoughMeasurementsAndACertifiedDimension) {
+  std::vector<MasterMeasurement> two = fourMeasurements();
+  two.resize(2);
+  EXPECT_THROW(verifyOnMaster(two, {{"width", {10.0, 0.002}}}, someConditions()), Error);
+  EXPECT_THROW(verifyOnMaster(fourMeasurements(), {{"height", {10.0, 0.002}}}, someConditions()),
+               Error);
+}
+
+}  // namespace
+}  // namespace xgauge

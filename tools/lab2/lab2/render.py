@@ -9,8 +9,9 @@ L itself when asked).  The integral is taken in two ways:
   plus the second-order term of the midpoint rule, f + (f_uu + f_vv) / 24,
   with the second differences of the neighbouring centres (exact for any
   quadratic variation over the pixel);
-- every other pixel and its neighbours (silhouettes, edges, walls seen
-  edge-on, the steep rim of a cylinder): the mean of a Fibonacci lattice of
+- every other pixel (silhouettes, edges, walls seen edge-on, the steep rim
+  of a cylinder; two pixels around the places where three or more
+  signatures meet, where edges end): the mean of a Fibonacci lattice of
   n points (default 233).  Each row and column of an n x n grid holds one
   lattice point, so an edge along a detector axis is placed to 1/(2n)
   pixel, and oblique edges to about (log n)/n.
@@ -92,16 +93,32 @@ def render(scene, geom, fn=None, lattice=233, curvature_tol_mm=0.02, stats=None)
     L = L.reshape(h, w)
     sig = sig.reshape(h, w)
     flag = np.zeros((h, w), bool)
+    other = np.full((h, w), np.nan)  # a second signature seen in the 3 x 3 neighbourhood
+    junction = np.zeros((h, w), bool)  # three or more: edges meet (vertices, corners)
     pad = np.pad(sig, 1, mode="edge")
     for dv in (-1, 0, 1):
         for du in (-1, 0, 1):
             if dv or du:
-                flag |= pad[1 + dv : 1 + dv + h, 1 + du : 1 + du + w] != sig
+                nb = pad[1 + dv : 1 + dv + h, 1 + du : 1 + du + w]
+                diff = nb != sig
+                flag |= diff
+                junction |= diff & ~np.isnan(other) & (nb != other)
+                other = np.where(diff & np.isnan(other), nb, other)
     Lp = np.pad(L, 1, mode="edge")
     d2u = Lp[1:-1, :-2] - 2 * L + Lp[1:-1, 2:]
     d2v = Lp[:-2, 1:-1] - 2 * L + Lp[2:, 1:-1]
-    flag |= (np.abs(d2u) > curvature_tol_mm) | (np.abs(d2v) > curvature_tol_mm)
-    flag = ndimage.binary_dilation(flag, structure=np.ones((3, 3), bool))
+    curved = (np.abs(d2u) > curvature_tol_mm) | (np.abs(d2v) > curvature_tol_mm)
+    # An edge (a straight line) that crosses a pixel always separates its
+    # centre from one of its 8 neighbours' centres, so those two are refined;
+    # around junctions (where an edge ends) and steep curvature the band is
+    # widened by a pixel.
+    grow = ndimage.binary_dilation(junction | curved, structure=np.ones((3, 3), bool), iterations=2)
+    flag |= curved | grow
+    # pixels on the panel's border have no neighbour on one side: no midpoint correction there
+    flag[0, :] |= v0 == 0
+    flag[-1, :] |= v1 == geom.rows
+    flag[:, 0] |= u0 == 0
+    flag[:, -1] |= u1 == geom.columns
     F = f(L)
     Fp = np.pad(F, 1, mode="edge")
     corr = (Fp[1:-1, :-2] - 2 * F + Fp[1:-1, 2:] + Fp[:-2, 1:-1] - 2 * F + Fp[2:, 1:-1]) / 24.0

@@ -80,6 +80,13 @@ constexpr double kProvisionalResidual = 0.5;
 
 }  // namespace
 
+void addStepSeconds(std::vector<StepSeconds>& into, std::string step,
+                    std::chrono::steady_clock::time_point& since) {
+  const auto now = std::chrono::steady_clock::now();
+  into.push_back({std::move(step), std::chrono::duration<double>(now - since).count()});
+  since = now;
+}
+
 RegisteredTable registeredTable(ForwardModel& model, const std::vector<double>& theta) {
   const int level = model.levelForWidth(2048);
   const ScatterModel& scatter = model.job().scatter;
@@ -198,6 +205,7 @@ void calibrateFromPart(const PartCalibrationJob& job, PartCalibration& out) {
 }
 
 std::vector<double> poseKnownPart(const PartCalibrationJob& job, PartCalibration& out) {
+  auto clock = std::chrono::steady_clock::now();
   out.step = "the initial material (thesis eq. 3.8)";
   if (!job.rate_floor)
     spdlog::warn(
@@ -251,6 +259,7 @@ std::vector<double> poseKnownPart(const PartCalibrationJob& job, PartCalibration
   if (job.pose_schedule) provisional.schedule = &*job.pose_schedule;
   out.measurement = measure(model, theta, provisional);
   theta = out.measurement.theta;
+  addStepSeconds(out.step_seconds, out.step, clock);
   if (!job.initial_region) {
     // The bent curve is a guess: the poses again with it free (its rates
     // no lower than the floor).
@@ -261,9 +270,13 @@ std::vector<double> poseKnownPart(const PartCalibrationJob& job, PartCalibration
     MeasureOptions joint = provisional;
     joint.search_poses = false;
     MeasurementResult fitted = measure(free, with, joint);
-    if (job.tilt_retry_deg > 0.0)
+    addStepSeconds(out.step_seconds, out.step, clock);
+    if (job.tilt_retry_deg > 0.0) {
+      out.step = "the tilts searched again";
       fitted =
           retryTilts(free, std::move(fitted), joint, job.initial_radiograph, job.tilt_retry_deg);
+      addStepSeconds(out.step_seconds, out.step, clock);
+    }
     with = fitted.theta;
     with.resize(theta.size());
     spdlog::info("poses with a free curve: loss {:.6g} (with eq. 3.8's: {:.6g})", fitted.total_loss,
@@ -277,6 +290,7 @@ void refineKnownPart(const PartCalibrationJob& job, std::vector<double> theta,
                      PartCalibration& out) {
   const CurveOptions curve{.max_terms = job.terms,
                            .rate_floor_per_mm = job.rate_floor ? job.rate_floor->per_mm : 0.0};
+  auto clock = std::chrono::steady_clock::now();
   const ExponentialSum initial({{1.0, out.initial_mu_per_mm}}, "thesis eq. 3.8");
   ForwardModel model(*job.inputs, initial);
 
@@ -326,6 +340,7 @@ void refineKnownPart(const PartCalibrationJob& job, std::vector<double> theta,
         asked.report.terms_used, asked.report.rms_residual, table.noise, r.change);
     material = r.material;
     out.rounds.push_back(r);
+    addStepSeconds(out.step_seconds, fmt::format("round {}", round + 1), clock);
     if (round > 0 && r.change < kSettled) break;
   }
   // The final material: the exponential fit to the pixels registered at the
@@ -348,6 +363,7 @@ void refineKnownPart(const PartCalibrationJob& job, std::vector<double> theta,
                   table.pixels, table.path_mm.size(), out.max_path_mm));
   out.material.setTransmissionUncertainty(out.fit.tableUncertainty());
   out.material.setCalibratedRange(std::array<double, 2>{table.path_mm.front(), out.max_path_mm});
+  addStepSeconds(out.step_seconds, "the final table and curve", clock);
   out.step = "done";
 }
 

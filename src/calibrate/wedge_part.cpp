@@ -117,8 +117,16 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
   out.part.emplace();
   PartCalibration& part = *out.part;
   const auto start = std::chrono::steady_clock::now();
+  auto clock = start;
+  // The part calibration's steps' seconds, then this one's own.
+  auto takeSteps = [&] {
+    for (StepSeconds& s : part.step_seconds) out.step_seconds.push_back(std::move(s));
+    part.step_seconds.clear();
+    clock = std::chrono::steady_clock::now();
+  };
   try {
     std::vector<double> theta = poseKnownPart(*part_job, part);
+    takeSteps();
     if (job.estimate_scatter) {
       // The scatter from the open beam the posed wedge leaves (halo.h),
       // then the rounds on the radiograph without it; where that does not
@@ -160,8 +168,10 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
       halo->primary = Image();
       out.scatter = halo->scatter;
       out.halo = std::move(halo);
+      addStepSeconds(out.step_seconds, part.step, clock);
     }
     refineKnownPart(*part_job, std::move(theta), part);
+    takeSteps();
   } catch (const Error&) {
     out.step = "the wedge as a known part: " + part.step;
     out.path_mm = part.path_mm, out.transmission = part.transmission, out.fit = part.fit;
@@ -245,6 +255,7 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
   combineCurveUncertainty(name, out);
   out.material.setCalibratedRange(std::array<double, 2>{out.path_mm.front(), out.x_max_mm});
   part.material = out.material;  // what the outputs write
+  addStepSeconds(out.step_seconds, out.step, clock);
 }
 
 }  // namespace xgauge

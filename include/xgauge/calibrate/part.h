@@ -54,6 +54,7 @@
 #include "xgauge/measure/model.h"
 #include "xgauge/measure/schedule.h"
 
+#include <chrono>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -91,6 +92,15 @@ struct PartCalibrationJob {
   static PartCalibrationJob load(const std::filesystem::path& path);
 };
 
+// The wall time of one step of a calibration (its bench's figures).
+struct StepSeconds {
+  std::string step;
+  double seconds = 0.0;
+};
+// Appends the seconds since `since` under `step` and restarts `since`.
+void addStepSeconds(std::vector<StepSeconds>& into, std::string step,
+                    std::chrono::steady_clock::time_point& since);
+
 struct PartCalibrationRound {
   ExponentialSum material{{{1.0, 0.0}}};
   ExponentialFitReport report;
@@ -109,6 +119,7 @@ struct PartCalibration {
   ExponentialSum material{{{1.0, 0.0}}};
   MeasurementResult measurement;  // the last pose fit
   double seconds = 0.0;
+  std::vector<StepSeconds> step_seconds;  // each step's, in order
   // The step under way or, after a success, "done": what a failure names.
   std::string step;
 };

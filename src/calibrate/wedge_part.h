@@ -43,6 +43,12 @@ inline constexpr double kMaxTiltDeg = 6.0;
 // The step of the tilts' second search (PartCalibrationJob::tilt_retry_deg).
 inline constexpr double kTiltRetryDeg = 3.0;
 inline constexpr double kMinVisibleMm = 30.0;
+// The tables' level (PartCalibrationJob::table_width_px): the coarsest at
+// least this wide. A binned pixel is the mean of the pixels it bins, whose
+// paths a smooth region holds linear across it, so its (path, intensity)
+// is theirs with the noise averaged; the bins' means come out as precise
+// from fewer, less noisy pixels.
+inline constexpr int kTableWidthPx = 768;
 
 // Steps 2 to 7 of calibrateFromWedge for a job with a model: `normalized`
 // the radiograph as normalized, `image` with the job's scatter removed (the

@@ -80,14 +80,19 @@ struct PartCalibrationJob {
   std::optional<RateFloor> rate_floor;
   // The schedule to follow instead of the job's, in the pose search and the
   // rounds' least squares (a wedge calibration's search over the turn in
-  // plane and the depth).
+  // plane and the depth). Without an initial region its parts run apart:
+  // the pose stages alone with eq. 3.8's guess, the joint stages with the
+  // curve free, the least squares in the rounds.
   std::optional<Schedule> pose_schedule;
   // Greater than 0: after the poses with a free curve, the initial
-  // radiograph's tilts (rotation about x and y) are searched again by this
-  // step and by their mirror images (part.cpp, retryTilts), for a part such
-  // as a calibration wedge seen in part, whose tilt the local fit can leave
-  // a few degrees off or mirrored.
+  // radiograph's tilts (rotation about x and y) that the fit leaves in doubt
+  // are searched again by this step and by their mirror images (part.cpp,
+  // retryTilts), for a part such as a calibration wedge seen in part, whose
+  // tilt the local fit can leave a few degrees off or mirrored.
   double tilt_retry_deg = 0.0;
+  // The table's level: the coarsest pyramid level at least this wide
+  // (registeredTable).
+  int table_width_px = 2048;
 
   static PartCalibrationJob load(const std::filesystem::path& path);
 };
@@ -129,19 +134,32 @@ struct PartCalibration {
 inline constexpr double kDarkestPercent = 2.0;
 
 // Step 3's table at `theta`: the smooth pixels' (path, scatter-free
-// intensity) pairs, binned by path. `noise` is the median standard error of
-// a bin's mean. Throws Error when too few paths remain.
+// intensity) pairs of the coarsest pyramid level at least `width_px` wide,
+// binned by path. `noise` is the median standard error of a bin's mean.
+// Throws Error when too few paths remain.
 struct RegisteredTable {
   std::vector<double> path_mm, transmission;
   double noise = 0.0;
   int64_t pixels = 0;
 };
-RegisteredTable registeredTable(ForwardModel& model, const std::vector<double>& theta);
+RegisteredTable registeredTable(ForwardModel& model, const std::vector<double>& theta,
+                                int width_px = 2048);
 
 PartCalibration calibrateFromPart(const PartCalibrationJob& job);
 // Its steps 1 and 2 into `out` (eq. 3.8's material, the pose fit): returns
-// the parameters found.
+// the parameters found. Without an initial region, searchKnownPart and
+// then freeCurvePoses.
 std::vector<double> poseKnownPart(const PartCalibrationJob& job, PartCalibration& out);
+// Step 1 and the pose search of step 2 (without an initial region: its
+// schedule's pose stages alone, with eq. 3.8's curve bent).
+std::vector<double> searchKnownPart(const PartCalibrationJob& job, PartCalibration& out);
+// The rest of step 2 without an initial region, from `theta`
+// (searchKnownPart's, for inputs of the same parameters: a wedge
+// calibration removes the scatter in between): the poses again with the
+// bent curve free, by the schedule's joint stages, and the tilts the fit
+// doubts searched again (PartCalibrationJob::tilt_retry_deg).
+std::vector<double> freeCurvePoses(const PartCalibrationJob& job, std::vector<double> theta,
+                                   PartCalibration& out);
 // Its steps 3 to 5 into `out`, from `theta` (poseKnownPart's, for inputs of
 // the same parameters: a wedge calibration removes the scatter in between).
 void refineKnownPart(const PartCalibrationJob& job, std::vector<double> theta,

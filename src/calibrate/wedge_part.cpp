@@ -1,5 +1,6 @@
 #include "wedge_part.h"
 
+#include "xgauge/core/error.h"
 #include "xgauge/geometry/mesh.h"
 #include "xgauge/measure/inputs.h"
 #include "xgauge/measure/model.h"
@@ -18,11 +19,12 @@ namespace {
 
 constexpr double kMinMagnification = 1.05;
 
-// The known wedge's fit (wedge_part.h, steps 2 to 4), one schedule whose
-// parts run apart (part.h): its pose stages alone with the guessed curve,
-// its joint stages with the curve free, its least squares in the rounds.
+// The known wedge's fit (wedge_part.h, steps 2, 4 and 5), one schedule
+// whose parts run apart (part.h): its pose stages alone with the guessed
+// curve, its joint stages with the curve free, its least squares in the
+// rounds.
 // - The pose: the search over rz at 21 depths (magnifications about 8 %
-//   apart) on the level about 128 px wide (600 samples each: about 15
+//   apart) on the level about 96 px wide (600 samples each: about 15
 //   degrees and a tenth of the window apart), 10 of its best distinct
 //   samples refined on the level about 192 px wide (a start's depth may be
 //   4 % off), the best again about 384 px wide: the outline placed to a
@@ -32,9 +34,9 @@ constexpr double kMinMagnification = 1.05;
 //   px wide, 2 x 2 samples.
 // - The rounds' least squares: the default's (the render's derivatives, the
 //   edges sampled 8 x 8) on the level about 768 px wide, finer where the
-//   shadow is under 128 px across there: a pose to a small fraction of
-//   those pixels moves a path by micrometres, far below what the curve's
-//   table resolves.
+//   shadow is under 128 px across there, at most 5 iterations a round: it
+//   only places the pose (the curve comes from the table), to a small
+//   fraction of those pixels, which moves a path by micrometres.
 // Keyed to widths, so that a 256^2 shot fits on its full size throughout
 // and a 4096^2 one at 1024 px at most.
 Schedule wedgeSchedule() {
@@ -51,15 +53,13 @@ Schedule wedgeSchedule() {
   p.separation = 0.03;
   p.local = {Method::kBobyqa, 192, 500, 0, {1.0, 1.0, 10.0, 5.0, 5.0, 30.0}};
   p.finer = {{Method::kBobyqa, 384, 500, 0, {0.5, 0.5, 1.0, 1.0, 1.0, 10.0}}};
-  JointStage coarse;
-  coarse.gauss_newton = true;
-  coarse.min_width_px = 384;
-  coarse.samples = 2;
-  coarse.evaluations = 20;
-  JointStage finer = coarse;
-  finer.min_width_px = 768;
-  finer.evaluations = 10;
-  s.joint = {coarse, finer};
+  // The default's joint fit (Levenberg-Marquardt on the render's
+  // derivatives: 20, then 10 iterations with 2 x 2 samples) and least
+  // squares, on coarser levels.
+  XG_CHECK(s.joint.size() == 2 && s.joint.front().gauss_newton,
+           "the default schedule's joint fit has changed");
+  s.joint[0].min_width_px = 384;
+  s.joint[1].min_width_px = 768;
   s.least_squares.min_width_px = 768;
   s.least_squares.max_iterations = 5;
   return s;

@@ -7,7 +7,8 @@
 //      shadow and x1 the wedge's thickness).
 //   2. Poses: the measurement schedule (measure/measure.h) with the known
 //      dimensions fixed, finds every radiograph's pose with that material.
-//   3. Material: with the poses fixed, every pixel of every roi whose path is
+//   3. Material: with the poses fixed, every pixel of every roi (on the
+//      coarsest level at least table_width_px wide) whose path is
 //      smooth around it (not on an edge, where the pixel's mean intensity is
 //      not the intensity of its centre's path) gives a pair (path, intensity);
 //      the intensity has the modelled scatter taken out, w G(I) computed from
@@ -19,7 +20,7 @@
 //      (curve.h; weights summing to 1, so I(0) = 1).
 //   4. Everything together: poses, the material's weights and rates (and any
 //      free dimension) by the measurement's final least-squares stage on the
-//      per-pixel residuals at the 2048 px level (thesis: "in the last
+//      per-pixel residuals on the schedule's level (thesis: "in the last
 //      hierarchical step, we only optimize the pose and the coefficients").
 //      Steps 3 and 4 fix what an alternation would leave coupled: a pose
 //      found with the wrong material has absorbed part of the error (a

@@ -17,12 +17,14 @@
 //   stated standard uncertainty.
 // --verbose: the calibration's log, with timestamps.
 //
-// Figures on the 2-core development machine (before: main at 72676af,
-// whose known-part fit searched and refined the pose at 384 to 768 px,
-// ran its joint fits by BOBYQA at 768 and 1536 px and its least squares on
-// forward differences at 1536 px, always searched the tilts again, and
-// read its tables from the full 3072^2 image): see kBefore below and
-// docs/method.md, "The wedge fitted as a known part".
+// Last, the same figures of this calibration before its speed-up (kBefore:
+// main at 72676af on the 2-core development machine, whose known-part fit
+// searched the pose at 192 px and refined it at 384 and 768 px, ran
+// BOBYQA joint stages at 768 and 1536 px and least squares on forward
+// differences at 1536 px after the pose search, after the free curve and
+// after each of its always-run tilt retries, and read its tables from the
+// full 3072^2 image), and the ratio. docs/method.md, "The wedge fitted as a
+// known part", says what the calibration does now.
 #include "xgauge/calibrate/wedge.h"
 #include "xgauge/core/log.h"
 #include "xgauge/core/memory.h"
@@ -35,6 +37,7 @@
 
 #include <sys/resource.h>
 
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -46,13 +49,33 @@ using namespace xgauge;
 
 namespace {
 
-// The same bench before the calibration's speed-up (main at 72676af).
-struct Before {
+// This bench on main at 72676af, before the calibration's speed-up, on the
+// 2-core development machine (shared: its CPU seconds are the steadier
+// figure): the total, the steps and the curve.
+struct BeforeStep {
+  const char* step;
   double seconds;
-  double deviation;
-  double uncertainty;
 };
-constexpr Before kBefore{0.0, 0.0, 0.0};
+struct Before {
+  double seconds, cpu_seconds;
+  double deviation, at_mm, uncertainty;
+  std::array<BeforeStep, 10> steps;
+};
+constexpr Before kBefore{698.0,
+                         1123.7,
+                         0.00109,
+                         0.15,
+                         0.00205,
+                         {{{"normalize the radiograph", 0.8},
+                           {"estimate the scatter around the box of the edges", 0.8},
+                           {"the poses with the initial material", 78.2},
+                           {"the poses with a free curve", 131.3},
+                           {"the tilts searched again", 297.1},
+                           {"the scatter around the posed wedge", 1.2},
+                           {"round 1", 170.5},
+                           {"round 2", 14.0},
+                           {"the final table and curve", 0.3},
+                           {"the curve's uncertainty", 3.9}}}};
 
 // This process's CPU seconds so far (user and system, every thread).
 double cpuSeconds() {
@@ -145,12 +168,15 @@ int main(int argc, char** argv) {
         deviation.max_abs, deviation.at_mm, result.x_max_mm, u, result.table_uncertainty);
     for (const CurveInfluence& i : result.influences)
       std::printf("  %.5f from the %s\n", i.change, i.name.c_str());
-    if (kBefore.seconds > 0.0)
-      std::printf(
-          "before the speed-up (main at 72676af): %.1f s, deviation %.5f, uncertainty %.5f; "
-          "now %.1f s (%.1f x faster)\n",
-          kBefore.seconds, kBefore.deviation, kBefore.uncertainty, seconds,
-          kBefore.seconds / seconds);
+    std::printf(
+        "\nbefore (main at 72676af, this machine): %.1f s (%.1f CPU seconds), the curve %.5f off "
+        "at %.2f mm, its standard uncertainty %.5f\n",
+        kBefore.seconds, kBefore.cpu_seconds, kBefore.deviation, kBefore.at_mm,
+        kBefore.uncertainty);
+    for (const BeforeStep& step : kBefore.steps)
+      std::printf("  %7.1f s  %s\n", step.seconds, step.step);
+    std::printf("now %.1f times faster (%.1f times fewer CPU seconds)\n", kBefore.seconds / seconds,
+                kBefore.cpu_seconds / cpu);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "calibrate_bench: %s\n", e.what());
     return 1;

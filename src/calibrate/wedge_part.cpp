@@ -24,7 +24,7 @@ constexpr double kMinMagnification = 1.05;
 // curve, its joint stages with the curve free, its least squares in the
 // rounds.
 // - The pose: the search over rz at 21 depths (magnifications about 8 %
-//   apart) on the level about 96 px wide (600 samples each: about 15
+//   apart) on the level about 128 px wide (600 samples each: about 15
 //   degrees and a tenth of the window apart), 10 of its best distinct
 //   samples refined on the level about 192 px wide (a start's depth may be
 //   4 % off), the best again about 384 px wide: the outline placed to a
@@ -42,7 +42,7 @@ constexpr double kMinMagnification = 1.05;
 Schedule wedgeSchedule() {
   Schedule s = scheduleFor(ScheduleKind::kDefault);
   PoseSchedule& p = s.pose;
-  p.search = {Method::kUniformSampling, 96, 0, 600, {}};
+  p.search = {Method::kUniformSampling, 128, 0, 600, {}};
   p.search_rotation = 2;
   p.search_depths = 21;
   p.search_around_shadow = true;

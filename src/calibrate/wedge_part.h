@@ -50,9 +50,11 @@ inline constexpr double kMinVisibleMm = 30.0;
 // The tables' level (PartCalibrationJob::table_width_px): the coarsest at
 // least this wide. A binned pixel is the mean of the pixels it bins, whose
 // paths a smooth region holds linear across it, so its (path, intensity)
-// is theirs with the noise averaged; the bins' means come out nearly as
-// precise from fewer, less noisy pixels (docs/method.md).
-inline constexpr int kTableWidthPx = 768;
+// is theirs with the noise averaged, and the bins' means come out nearly
+// as precise from fewer, less noisy pixels; binned further, the band near
+// the edges that the smoothness test leaves out widens, and the shortest
+// paths (next to a wedge's thin end) leave the table (docs/method.md).
+inline constexpr int kTableWidthPx = 1024;
 
 // Steps 2 to 7 of calibrateFromWedge for a job with a model: `normalized`
 // the radiograph as normalized, `image` with the job's scatter removed (the

@@ -3,7 +3,7 @@
 //   build/bench/calibrate_bench [dataset folder] [--verbose]
 //
 // The replica of a lab's 3072^2 wedge shot (datasets/wedge_3072.json,
-// simulated into data/wedge_3072 first if missing, about a minute): the
+// simulated into data/wedge_3072 first if missing, about two minutes): the
 // wedge block at magnification 3.83 filling about 72 % of the width of a
 // panel of 0.139 mm pixels, a scatter halo and a previous frame's lag.
 // Runs its job, examples/calibrate_wedge_3072.json (the wedge fitted as a
@@ -115,7 +115,7 @@ int main(int argc, char** argv) {
     if (verbose) spdlog::set_pattern("[%T.%e] %^[%l]%$ %v");
     setProgressEnabled(false);
     if (!fs::exists(dataset / "truth.json")) {
-      std::printf("simulating %s (about a minute)...\n", dataset.c_str());
+      std::printf("simulating %s (about two minutes)...\n", dataset.c_str());
       simulateDataset(Recipe::load("datasets/wedge_3072.json"), dataset);
     }
     const DatasetTruth truth = DatasetTruth::load(dataset / "truth.json");

@@ -256,6 +256,7 @@ WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
 
 void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   const auto start = std::chrono::steady_clock::now();
+  auto clock = start;
   const Machine& machine = job.machine;
   const std::string name = job.radiograph.image.string();
   out = WedgeCalibration{};
@@ -292,6 +293,7 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
     spdlog::info("{}: lag of {} subtracted, {}", name, spec.previous.string(),
                  describeLag(*prepared.lag));
   out.lag = prepared.lag;
+  addStepSeconds(out.step_seconds, out.step, clock);
   const Image normalized = std::move(prepared.image);
   Image image = normalized;
   out.normalized = normalized;  // what a failure below shows
@@ -327,6 +329,7 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
       out.scatter = halo.scatter;
       out.halo = std::move(halo);
     }
+    addStepSeconds(out.step_seconds, "estimate the scatter around the box of the edges", clock);
   } else {
     out.scatter = job.scatter;
     if (job.scatter.enabled())

@@ -1,5 +1,6 @@
 #include "wedge_part.h"
 
+#include "xgauge/core/error.h"
 #include "xgauge/geometry/mesh.h"
 #include "xgauge/measure/inputs.h"
 #include "xgauge/measure/model.h"
@@ -18,15 +19,28 @@ namespace {
 
 constexpr double kMinMagnification = 1.05;
 
-// The pose search of a wedge of unknown turn and depth (wedge_part.h, step
-// 2): the pose stages of the `bobyqa` schedule (the default's) with the
-// search over rz at 21
-// depths (magnifications about 8 % apart) on the level about 128 px wide
-// (600 samples each: about 15 degrees and a tenth of the window apart), 10
-// of its best distinct samples refined until converged (a start's depth may
-// be 4 % off).
+// The known wedge's fit (wedge_part.h, steps 2, 4 and 5), one schedule
+// whose parts run apart (part.h): its pose stages alone with the guessed
+// curve, its joint stages with the curve free, its least squares in the
+// rounds.
+// - The pose: the search over rz at 21 depths (magnifications about 8 %
+//   apart) on the level about 128 px wide (600 samples each: about 15
+//   degrees and a tenth of the window apart), 10 of its best distinct
+//   samples refined on the level about 192 px wide (a start's depth may be
+//   4 % off), the best again about 384 px wide: the outline placed to a
+//   fraction of those pixels, which is all the joint fit needs to start.
+// - The joint fit with the curve free: Levenberg-Marquardt on the render's
+//   derivatives (the default schedule's), on the levels about 384 and 768
+//   px wide, 2 x 2 samples.
+// - The rounds' least squares: the default's (the render's derivatives, the
+//   edges sampled 8 x 8) on the level about 768 px wide, finer where the
+//   shadow is under 128 px across there, at most 5 iterations a round: it
+//   only places the pose (the curve comes from the table), to a small
+//   fraction of those pixels, which moves a path by micrometres.
+// Keyed to widths, so that a 256^2 shot fits on its full size throughout
+// and a 4096^2 one at 1024 px at most.
 Schedule wedgeSchedule() {
-  Schedule s = scheduleFor(ScheduleKind::kBobyqa);
+  Schedule s = scheduleFor(ScheduleKind::kDefault);
   PoseSchedule& p = s.pose;
   p.search = {Method::kUniformSampling, 128, 0, 600, {}};
   p.search_rotation = 2;
@@ -37,18 +51,17 @@ Schedule wedgeSchedule() {
   p.window_of_part_size = 0.35;
   p.multistart = 10;
   p.separation = 0.03;
-  p.local = {Method::kBobyqa, 256, 500, 0, {1.0, 1.0, 10.0, 5.0, 5.0, 30.0}};
-  p.finer = {{Method::kBobyqa, 512, 500, 0, {0.5, 0.5, 1.0, 1.0, 1.0, 10.0}}};
-  // The joint stages (the pose, and with it the free curve of step 3) and
-  // the rounds' least squares up to the level about 1024 px wide: a pose to
-  // a tenth of those pixels, and a 4096^2 shot calibrates in minutes, not
-  // tens of minutes.
-  s.joint = {{Method::kBobyqa, 512, 2, 1200, 1.0, 10.0},
-             {Method::kBobyqa, 1024, 2, 400, 0.3, 10.0}};
-  s.least_squares.enabled = true;
-  s.least_squares.min_width_px = 1024;
-  s.least_squares.samples = 2;
-  s.least_squares.max_iterations = 30;
+  p.local = {Method::kBobyqa, 192, 500, 0, {1.0, 1.0, 10.0, 5.0, 5.0, 30.0}};
+  p.finer = {{Method::kBobyqa, 384, 500, 0, {0.5, 0.5, 1.0, 1.0, 1.0, 10.0}}};
+  // The default's joint fit (Levenberg-Marquardt on the render's
+  // derivatives: 20, then 10 iterations with 2 x 2 samples) and least
+  // squares, on coarser levels.
+  XG_CHECK(s.joint.size() == 2 && s.joint.front().gauss_newton,
+           "the default schedule's joint fit has changed");
+  s.joint[0].min_width_px = 384;
+  s.joint[1].min_width_px = 768;
+  s.least_squares.min_width_px = 768;
+  s.least_squares.max_iterations = 5;
   return s;
 }
 
@@ -113,16 +126,26 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
   part_job->rate_floor = job.rate_floor;
   part_job->pose_schedule = wedgeSchedule();
   part_job->tilt_retry_deg = kTiltRetryDeg;
+  part_job->table_width_px = kTableWidthPx;
   out.part_job = part_job;
   out.part.emplace();
   PartCalibration& part = *out.part;
   const auto start = std::chrono::steady_clock::now();
+  auto clock = start;
+  // The part calibration's steps' seconds, then this one's own.
+  auto takeSteps = [&] {
+    for (StepSeconds& s : part.step_seconds) out.step_seconds.push_back(std::move(s));
+    part.step_seconds.clear();
+    clock = std::chrono::steady_clock::now();
+  };
   try {
-    std::vector<double> theta = poseKnownPart(*part_job, part);
+    std::vector<double> theta = searchKnownPart(*part_job, part);
+    takeSteps();
     if (job.estimate_scatter) {
-      // The scatter from the open beam the posed wedge leaves (halo.h),
-      // then the rounds on the radiograph without it; where that does not
-      // decide, the one around the box of the radiograph's sharp edges.
+      // The scatter from the open beam the posed wedge leaves (halo.h: the
+      // pose search's outline is the shadow's), then the rest on the
+      // radiograph without it; where that does not decide, the one around
+      // the box of the radiograph's sharp edges.
       part.step = "the scatter around the posed wedge";
       const PreparedRadiograph& prepared = *part_job->inputs->radiographs.front();
       const HaloOptions options;
@@ -160,8 +183,11 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
       halo->primary = Image();
       out.scatter = halo->scatter;
       out.halo = std::move(halo);
+      addStepSeconds(out.step_seconds, part.step, clock);
     }
+    theta = freeCurvePoses(*part_job, std::move(theta), part);
     refineKnownPart(*part_job, std::move(theta), part);
+    takeSteps();
   } catch (const Error&) {
     out.step = "the wedge as a known part: " + part.step;
     out.path_mm = part.path_mm, out.transmission = part.transmission, out.fit = part.fit;
@@ -199,7 +225,7 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
     if (!(u > 0.0)) return;
     try {
       ForwardModel model(moved, out.material);
-      const RegisteredTable table = registeredTable(model, at);
+      const RegisteredTable table = registeredTable(model, at, part_job->table_width_px);
       const CurveOptions options{
           .max_terms = terms,
           .noise = table.noise,
@@ -245,6 +271,7 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
   combineCurveUncertainty(name, out);
   out.material.setCalibratedRange(std::array<double, 2>{out.path_mm.front(), out.x_max_mm});
   part.material = out.material;  // what the outputs write
+  addStepSeconds(out.step_seconds, out.step, clock);
 }
 
 }  // namespace xgauge

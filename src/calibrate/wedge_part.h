@@ -15,17 +15,21 @@
 //      around the shadow's centroid, at depths spread evenly in magnification
 //      from 1.05 to the detector's width over 30 mm (kMinVisibleMm of the
 //      wedge across the detector); the best distinct samples are refined in
-//      6 DOF and the best of those coarse to fine. Tilts are bounded by
-//      kMaxTiltDeg. Then the pose again with the curve free, and its tilts
-//      searched again from kTiltRetryDeg either way and their mirror images.
+//      6 DOF and the best of those coarse to fine, on coarse levels (the
+//      pose stages alone: the curve is a guess). Tilts are bounded by
+//      kMaxTiltDeg.
 //   3. The scatter, when the job gives none: the halo fit (halo.h) on the
 //      open beam the posed wedge leaves; where that does not decide, the
-//      halo around the box of the radiograph's sharp edges if it did.
-//   4. The rounds of the part calibration on the radiograph without the
-//      scatter: the table of the pixels whose path is smooth, its curve,
+//      halo around the box of the radiograph's sharp edges if it did. The
+//      rest runs on the radiograph without it.
+//   4. The pose again with the curve free (the joint fit on the render's
+//      derivatives), and the tilts the fit doubts searched again from
+//      kTiltRetryDeg either way and their mirror images (part.cpp).
+//   5. The rounds of the part calibration: the table of the pixels whose
+//      path is smooth (on the level about kTableWidthPx wide), its curve,
 //      then the pose and the curve together, until the curve settles; the
 //      final curve from the final table.
-//   5. The curve's uncertainty: the table's own, combined with the curve's
+//   6. The curve's uncertainty: the table's own, combined with the curve's
 //      change when the scatter's weight and width and each caliper value move
 //      by their standard uncertainties (the table read again at the fitted
 //      pose: the pose is fitted to the outline, which these barely move).
@@ -43,6 +47,14 @@ inline constexpr double kMaxTiltDeg = 6.0;
 // The step of the tilts' second search (PartCalibrationJob::tilt_retry_deg).
 inline constexpr double kTiltRetryDeg = 3.0;
 inline constexpr double kMinVisibleMm = 30.0;
+// The tables' level (PartCalibrationJob::table_width_px): the coarsest at
+// least this wide. A binned pixel is the mean of the pixels it bins, whose
+// paths a smooth region holds linear across it, so its (path, intensity)
+// is theirs with the noise averaged, and the bins' means come out nearly
+// as precise from fewer, less noisy pixels; binned further, the band near
+// the edges that the smoothness test leaves out widens, and the shortest
+// paths (next to a wedge's thin end) leave the table (docs/method.md).
+inline constexpr int kTableWidthPx = 1024;
 
 // Steps 2 to 7 of calibrateFromWedge for a job with a model: `normalized`
 // the radiograph as normalized, `image` with the job's scatter removed (the

@@ -7,7 +7,8 @@
 //      shadow and x1 the wedge's thickness).
 //   2. Poses: the measurement schedule (measure/measure.h) with the known
 //      dimensions fixed, finds every radiograph's pose with that material.
-//   3. Material: with the poses fixed, every pixel of every roi whose path is
+//   3. Material: with the poses fixed, every pixel of every roi (on the
+//      coarsest level at least table_width_px wide) whose path is
 //      smooth around it (not on an edge, where the pixel's mean intensity is
 //      not the intensity of its centre's path) gives a pair (path, intensity);
 //      the intensity has the modelled scatter taken out, w G(I) computed from
@@ -19,7 +20,7 @@
 //      (curve.h; weights summing to 1, so I(0) = 1).
 //   4. Everything together: poses, the material's weights and rates (and any
 //      free dimension) by the measurement's final least-squares stage on the
-//      per-pixel residuals at the 2048 px level (thesis: "in the last
+//      per-pixel residuals on the schedule's level (thesis: "in the last
 //      hierarchical step, we only optimize the pose and the coefficients").
 //      Steps 3 and 4 fix what an alternation would leave coupled: a pose
 //      found with the wrong material has absorbed part of the error (a
@@ -54,6 +55,7 @@
 #include "xgauge/measure/model.h"
 #include "xgauge/measure/schedule.h"
 
+#include <chrono>
 #include <filesystem>
 #include <memory>
 #include <optional>
@@ -79,17 +81,31 @@ struct PartCalibrationJob {
   std::optional<RateFloor> rate_floor;
   // The schedule to follow instead of the job's, in the pose search and the
   // rounds' least squares (a wedge calibration's search over the turn in
-  // plane and the depth).
+  // plane and the depth). Without an initial region its parts run apart:
+  // the pose stages alone with eq. 3.8's guess, the joint stages with the
+  // curve free, the least squares in the rounds.
   std::optional<Schedule> pose_schedule;
   // Greater than 0: after the poses with a free curve, the initial
-  // radiograph's tilts (rotation about x and y) are searched again by this
-  // step and by their mirror images (part.cpp, retryTilts), for a part such
-  // as a calibration wedge seen in part, whose tilt the local fit can leave
-  // a few degrees off or mirrored.
+  // radiograph's tilts (rotation about x and y) that the fit leaves in doubt
+  // are searched again by this step and by their mirror images (part.cpp,
+  // retryTilts), for a part such as a calibration wedge seen in part, whose
+  // tilt the local fit can leave a few degrees off or mirrored.
   double tilt_retry_deg = 0.0;
+  // The table's level: the coarsest pyramid level at least this wide
+  // (registeredTable).
+  int table_width_px = 2048;
 
   static PartCalibrationJob load(const std::filesystem::path& path);
 };
+
+// The wall time of one step of a calibration (its bench's figures).
+struct StepSeconds {
+  std::string step;
+  double seconds = 0.0;
+};
+// Appends the seconds since `since` under `step` and restarts `since`.
+void addStepSeconds(std::vector<StepSeconds>& into, std::string step,
+                    std::chrono::steady_clock::time_point& since);
 
 struct PartCalibrationRound {
   ExponentialSum material{{{1.0, 0.0}}};
@@ -109,6 +125,7 @@ struct PartCalibration {
   ExponentialSum material{{{1.0, 0.0}}};
   MeasurementResult measurement;  // the last pose fit
   double seconds = 0.0;
+  std::vector<StepSeconds> step_seconds;  // each step's, in order
   // The step under way or, after a success, "done": what a failure names.
   std::string step;
 };
@@ -118,19 +135,32 @@ struct PartCalibration {
 inline constexpr double kDarkestPercent = 2.0;
 
 // Step 3's table at `theta`: the smooth pixels' (path, scatter-free
-// intensity) pairs, binned by path. `noise` is the median standard error of
-// a bin's mean. Throws Error when too few paths remain.
+// intensity) pairs of the coarsest pyramid level at least `width_px` wide,
+// binned by path. `noise` is the median standard error of a bin's mean.
+// Throws Error when too few paths remain.
 struct RegisteredTable {
   std::vector<double> path_mm, transmission;
   double noise = 0.0;
   int64_t pixels = 0;
 };
-RegisteredTable registeredTable(ForwardModel& model, const std::vector<double>& theta);
+RegisteredTable registeredTable(ForwardModel& model, const std::vector<double>& theta,
+                                int width_px = 2048);
 
 PartCalibration calibrateFromPart(const PartCalibrationJob& job);
 // Its steps 1 and 2 into `out` (eq. 3.8's material, the pose fit): returns
-// the parameters found.
+// the parameters found. Without an initial region, searchKnownPart and
+// then freeCurvePoses.
 std::vector<double> poseKnownPart(const PartCalibrationJob& job, PartCalibration& out);
+// Step 1 and the pose search of step 2 (without an initial region: its
+// schedule's pose stages alone, with eq. 3.8's curve bent).
+std::vector<double> searchKnownPart(const PartCalibrationJob& job, PartCalibration& out);
+// The rest of step 2 without an initial region, from `theta`
+// (searchKnownPart's, for inputs of the same parameters: a wedge
+// calibration removes the scatter in between): the poses again with the
+// bent curve free, by the schedule's joint stages, and the tilts the fit
+// doubts searched again (PartCalibrationJob::tilt_retry_deg).
+std::vector<double> freeCurvePoses(const PartCalibrationJob& job, std::vector<double> theta,
+                                   PartCalibration& out);
 // Its steps 3 to 5 into `out`, from `theta` (poseKnownPart's, for inputs of
 // the same parameters: a wedge calibration removes the scatter in between).
 void refineKnownPart(const PartCalibrationJob& job, std::vector<double> theta,

@@ -146,7 +146,10 @@ struct WedgeCalibration {
   ScatterModel scatter;
   std::optional<HaloFit> halo;  // when estimated (its primary image moved to `normalized`)
   double seconds = 0.0;
-  Image normalized;  // the radiograph as the ramp was found in (scatter removed)
+  // Each step's seconds, in order (a wedge fitted as a known part: its
+  // part calibration's among them).
+  std::vector<StepSeconds> step_seconds;
+  Image normalized;                // the radiograph as the ramp was found in (scatter removed)
   std::optional<LagEstimate> lag;  // the previous frame's lag subtracted, if named
   // The step under way or, after a success, "done": what a failure names.
   std::string step;

@@ -19,6 +19,8 @@ packages=(
   libstb-dev           # PNG previews (stb_image_write)
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-jsonschema   # tests/validate_schemas.py: JSON files against docs/schemas
+  python3-numpy python3-scipy python3-xraylib python3-tifffile python3-pytest
+                       # tools/lab2: the second, independent virtual lab and its tests
   clang-format clang-tidy   # scripts/tidy.sh
   clang libclang-rt-14-dev llvm   # scripts/fuzz.sh: libFuzzer, sanitizers, symbolizer
   chromium fonts-dejavu-core   # tests/report_test.py: the HTML reports in headless Chromium

@@ -695,6 +695,24 @@ TEST_F(Uncertainty, TwoEdgesThatMoveWithThePartAreReportedAsTheirSum) {
   EXPECT_GE(section->expanded, 2.0 * std::abs(*u["size_y"] - *u["size_z"]) - 1e-12);
 }
 
+// A region in the open beam, far from the part's shadow, is a detector
+// effect: reported, but none of its area counts for the failure rule.
+TEST_F(Uncertainty, AResidualRegionInTheOpenBeamIsNotThePartsArea) {
+  Scene scene;
+  scene.noise = 0.005;
+  scene.blob = std::array<double, 4>{22.0, 22.0, 4.0, 0.04};  // 10 px off the shadow
+  const MeasurementResult r = measureScene(scene);
+  ASSERT_EQ(r.check.regions.size(), 1u);
+  const ResidualRegion& region = r.check.regions[0];
+  EXPECT_LT((region.centre_px - Vec2(22.0, 22.0)).norm(), 4.0);
+  EXPECT_GT(region.area_mm2, 0.0);
+  EXPECT_EQ(region.part_area_mm2, 0.0);
+  EXPECT_EQ(r.check.region_share, 0.0);
+  EXPECT_TRUE(std::any_of(r.check.warnings.begin(), r.check.warnings.end(), [](const auto& w) {
+    return w.find("in the open beam") != std::string::npos;
+  }));
+}
+
 TEST_F(Uncertainty, AResidualRegionIsReportedWhereTheImageDiffersAndNowhereElse) {
   Scene clean;
   clean.noise = 0.005;
@@ -710,6 +728,7 @@ TEST_F(Uncertainty, AResidualRegionIsReportedWhereTheImageDiffersAndNowhereElse)
   EXPECT_LT((region.centre_px - Vec2(70.0, 85.0)).norm(), 1.0);
   EXPECT_EQ(region.sign, "brighter");
   EXPECT_TRUE(region.part_mm.has_value());
+  EXPECT_NEAR(region.part_area_mm2, region.area_mm2, 1e-9);  // all of it on the shadow
   bool warned = false, says_misfit = false;
   for (const auto& w : found.check.warnings) {
     warned |= w.find("residual region") != std::string::npos;

@@ -132,6 +132,7 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                            {"centre_px", {r.centre_px.x(), r.centre_px.y()}},
                            {"box_px", r.box_px},
                            {"area_mm2", r.area_mm2},
+                           {"part_area_mm2", r.part_area_mm2},
                            {"peak", r.peak},
                            {"sigmas", r.sigmas},
                            {"sign", r.sign}};

@@ -39,12 +39,21 @@ inline constexpr int kRegionMinPixels = 6;
 inline constexpr double kRegionGrowSigmas = 2.5;
 inline constexpr double kBeyondRange = 0.01;
 inline constexpr double kBelowRangeFraction = 0.05;
+// How far from the fitted part's shadow (mm at the part, scaled by the
+// radiograph's magnification onto the detector) a residual region's pixels
+// still count as the part's: a wall fitted too thin leaves its band just
+// outside the model's shadow. Farther out, in the open beam, a region is a
+// detector effect the model leaves out (column crosstalk, a halo's shape, an
+// uncorrected flat field): it stays a warning, and the misfit term of U
+// counts what it does to the dimensions, but it says nothing of the part.
+inline constexpr double kRegionPartMarginMm = 2.0;
 
 // When a fit is not a measurement (job "acceptance"; docs/method.md, "The
 // failure rule"): a radiograph whose rms residual exceeds its open-beam
 // noise by more than max_misfit_ratio (kMisfitRatio only warns); a free
 // dimension or pose parameter at a bound; residual regions that together
-// cover more than max_region_share of the part's shadow. Such a fit is
+// cover more than max_region_share of the part's shadow (their pixels on or
+// near the shadow, ResidualRegion::part_area_mm2). Such a fit is
 // tried again from other starts (`retries` times); if every attempt fails
 // the result is "not measured": no verdicts, exit status 1, its values kept
 // apart from any result.
@@ -63,6 +72,9 @@ struct ResidualRegion {
   Vec2 centre_px;               // full-size detector pixels (continuous), residual-weighted
   std::array<int, 4> box_px{};  // [x, y, width, height], full-size pixels
   double area_mm2 = 0.0;        // on the detector
+  // Of that, the pixels on the fitted part's shadow or within
+  // kRegionPartMarginMm of it: what the failure rule's region share counts.
+  double part_area_mm2 = 0.0;
   double peak = 0.0;    // largest |simulated - measured| of the 3 x 3 mean (normalized units)
   double sigmas = 0.0;  // peak in robust sigmas of the 3 x 3 mean
   std::string sign;     // "brighter" (less material than modelled) or "darker"

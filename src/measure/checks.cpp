@@ -207,8 +207,9 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
       }
     rc.shadow_area_mm2 =
         static_cast<double>(through) * scale * scale * machine.pitch_u_mm * machine.pitch_v_mm;
-    const std::vector<uint8_t> near_part = nearShadow(
-        paths, kRegionPartMarginMm * magnificationOf(model, theta, r) / (machine.pitch_u_mm * scale));
+    const std::vector<uint8_t> near_part =
+        nearShadow(paths, kRegionPartMarginMm * magnificationOf(model, theta, r) /
+                              (machine.pitch_u_mm * scale));
     rc.below_range_fraction =
         through > 0 ? static_cast<double>(short_paths) / static_cast<double>(through) : 0.0;
     if (calibrated && rc.longest_path_mm > (*calibrated)[1] * (1.0 + kBeyondRange))

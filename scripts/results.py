@@ -38,10 +38,12 @@ A table is one JSON file in docs/results/:
 --update reads the summary an `xgauge study` writes, STUDY/study.json (its
 format: docs/formats.md, "xgauge study"), and rewrites the table's rows: one
 row per dimension (in the table's present order, new dimensions after) and a
-total row from the study's pooled figures; it sets "measured" to --date
-(default today, UTC) and --commit (default `git rev-parse --short HEAD`) and
-leaves "status", "text" and "notes" as they are, which the one who refreshes
-a table reads again. KEY is one of: dimension, mean_abs_mm, max_abs_mm,
+total row from the study's pooled figures (with "identifiable_only", the
+dimensions a study reports without U, such as the wedge's single pocket
+edges, are left out); it sets "measured" to --date (default today, UTC)
+and --commit (default `git rev-parse --short HEAD`), empties "status" and
+leaves "text" and "notes" as they are, which the one who refreshes a table
+reads again. KEY is one of: dimension, mean_abs_mm, max_abs_mm,
 mean_u_mm, coverage, mean_normalised_error. Only the tables with a
 "refresh" key can be refreshed (--list names them): the study tables whose
 columns are those figures (Prism A and Prism B pairs, the Prism A triples,
@@ -167,6 +169,9 @@ def update(table_path, study_dir, date, commit):
         sys.exit(f"{table_path}: refresh columns must be dimension then some of {sorted(FORMATS)}")
     dims = study["dimensions"]
     present = [r[0] for r in table.get("rows", []) if not r[0].startswith("**")]
+    if refresh.get("identifiable_only"):
+        # dimensions reported as not identifiable carry no U (runs_with_u 0)
+        dims = {d: f for d, f in dims.items() if f.get("runs_with_u")}
     order = [d for d in present if d in dims] + [d for d in dims if d not in present]
     for d in present:
         if d not in dims:
@@ -192,6 +197,9 @@ def update(table_path, study_dir, date, commit):
         "note": f"{study.get('measured_runs', len(study.get('runs', [])))} runs, "
                 f"median {study.get('median_seconds', 0):.1f} s per run",
     }
+    # the status said what the old figures were not measured with: it no
+    # longer applies; text and notes are left for the one who refreshes
+    table["status"] = ""
     with open(table_path, "w", encoding="utf-8") as f:
         json.dump(table, f, indent=2, ensure_ascii=False)
         f.write("\n")
@@ -221,7 +229,7 @@ def main():
     if args.list:
         for t in tables:
             kind = "refresh from study.json" if t.get("refresh") else "by hand"
-            print(f"docs/results/{t['_file']}: {t['section']} / {t['title']} ({kind})")
+            print(f"docs/results/{t['_file']}: {t['section']} / {t.get('title', '(text only)')} ({kind})")
         return 0
     text = render(tables)
     if args.check:

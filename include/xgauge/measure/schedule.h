@@ -44,7 +44,7 @@
 //   gauss-newton  the default with point samples alone in its least-squares
 //            stage and budget (no edge refinement): faster, but on Prism B
 //            at 1024^2 slot_depth's mean error doubled against a refined
-//            fit's (docs/results.md, "Speed").
+//            fit's (docs/decisions/0012-gauss-newton-stays-opt-in.md).
 #pragma once
 
 #include "xgauge/optimize/minimize.h"

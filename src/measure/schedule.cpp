@@ -62,8 +62,8 @@ Schedule makeDefault() {
   // by its partial value, and the replica's 21 Prism A pairs at 4096^2 came
   // out as accurate (mean |error| 0.0232 mm against 0.0226, max 0.0662
   // against 0.0645, every edge dimension within 0.0005 mm of it) in half the
-  // time (docs/decisions/0017-final-stage-on-the-1024-level.md). A shadow narrower than 128 px there keeps a
-  // finer level.
+  // time (docs/decisions/0017-final-stage-on-the-1024-level.md). A shadow narrower than 128 px
+  // there keeps a finer level.
   s.least_squares.min_width_px = 1024;
   s.least_squares.min_roi_px = 128;
   return s;

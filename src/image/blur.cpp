@@ -65,20 +65,28 @@ std::vector<float> floatTaps(const std::vector<double>& taps) {
 // per pass (a 64-bit division per tap and row cost as much as the taps'
 // arithmetic on the 128 px scatter renders, whose kernels are wider than
 // they are).
-std::vector<int> reflectedIndices(int n, int radius) {
+// With a zero border, -1 marks an index outside [0, n) (a zero sample).
+std::vector<int> reflectedIndices(int n, int radius, BlurBorder border = BlurBorder::kMirror) {
   std::vector<int> out(static_cast<size_t>(n) + 2 * static_cast<size_t>(radius));
-  for (int i = -radius; i < n + radius; ++i) out[static_cast<size_t>(i + radius)] = reflect(i, n);
+  for (int i = -radius; i < n + radius; ++i)
+    out[static_cast<size_t>(i + radius)] =
+        border == BlurBorder::kMirror ? reflect(i, n) : (i >= 0 && i < n ? i : -1);
   return out;
 }
 
 // out(x, y) = sum_k taps[k] in(x, reflect(y + k)), symmetric taps of odd size.
 // Column strips keep the 2 * radius + 1 input rows of a strip in cache.
 template <typename T>
-void convolveColumns(const ImageT<T>& in, ImageT<T>& out, std::span<const T> taps) {
+void convolveColumns(const ImageT<T>& in, ImageT<T>& out, std::span<const T> taps,
+                     BlurBorder border = BlurBorder::kMirror) {
   const int width = in.width(), height = in.height();
   const int radius = static_cast<int>(taps.size() / 2);
-  const std::vector<int> reflected = reflectedIndices(height, radius);
-  const auto row = [&](int y) { return in.row(reflected[static_cast<size_t>(y + radius)]); };
+  const std::vector<int> reflected = reflectedIndices(height, radius, border);
+  const std::vector<T> zeros(static_cast<size_t>(width), T{0});
+  const auto row = [&](int y) {
+    const int j = reflected[static_cast<size_t>(y + radius)];
+    return j < 0 ? zeros.data() : in.row(j);
+  };
   constexpr int kStrip = 512;
   tbb::parallel_for(Rows(0, height, 16), [&](const Rows& rows) {
     for (int x0 = 0; x0 < width; x0 += kStrip) {
@@ -103,15 +111,17 @@ void convolveColumns(const ImageT<T>& in, ImageT<T>& out, std::span<const T> tap
 // original(x, y). `original` is read only when mix_original != 0.
 template <typename T>
 void convolveRows(const ImageT<T>& in, ImageT<T>& out, std::span<const T> taps, T mix_blur,
-                  T mix_original, const ImageT<T>& original) {
+                  T mix_original, const ImageT<T>& original,
+                  BlurBorder border = BlurBorder::kMirror) {
   const int width = in.width(), height = in.height();
   const int radius = static_cast<int>(taps.size() / 2);
-  const std::vector<int> reflected = reflectedIndices(width, radius);
+  const std::vector<int> reflected = reflectedIndices(width, radius, border);
   tbb::parallel_for(Rows(0, height, 8), [&](const Rows& rows) {
     std::vector<T> padded(static_cast<size_t>(width) + 2 * static_cast<size_t>(radius));
     for (int y = rows.begin(); y < rows.end(); ++y) {
       const T* src = in.row(y);
-      for (size_t i = 0; i < padded.size(); ++i) padded[i] = src[reflected[i]];
+      for (size_t i = 0; i < padded.size(); ++i)
+        padded[i] = reflected[i] < 0 ? T{0} : src[reflected[i]];
       T* centre = padded.data() + radius;
       T* o = out.row(y);
       const T tap0 = taps[static_cast<size_t>(radius)];
@@ -132,13 +142,13 @@ void convolveRows(const ImageT<T>& in, ImageT<T>& out, std::span<const T> taps, 
 
 // weight * G(image) + (1 - weight) * image by the direct separable
 // convolution.
-Image blurDirect(const Image& image, double sigma_px, double weight) {
+Image blurDirect(const Image& image, double sigma_px, double weight, BlurBorder border) {
   const std::vector<float> taps = floatTaps(gaussianTaps(sigma_px));
   Image columns(image.width(), image.height());
-  convolveColumns<float>(image, columns, taps);
+  convolveColumns<float>(image, columns, taps, border);
   Image out(image.width(), image.height());
   convolveRows<float>(columns, out, taps, static_cast<float>(weight),
-                      static_cast<float>(1.0 - weight), image);
+                      static_cast<float>(1.0 - weight), image, border);
   return out;
 }
 
@@ -147,10 +157,17 @@ Image blurDirect(const Image& image, double sigma_px, double weight) {
 // x + 0.5, constant beyond the first and last sample. Pixel x lies between
 // samples i = floor(u) and i + 1 with u = (x + 0.5) / f - 0.5 (exact for a
 // power of two f). Calls visit(i, weight) for both samples.
+// With `extrapolate` (a zero border, whose blur falls steeply towards the
+// edge) the line through the first or last two samples continues instead.
 template <typename Visit>
-void interpolationWeights(int x, int n, int f, Visit&& visit) {
+void interpolationWeights(int x, int n, int f, Visit&& visit, bool extrapolate = false) {
   const double u = (x + 0.5) / f - 0.5;
-  if (u <= 0.0) {
+  if (extrapolate && n >= 2 && (u < 0.0 || u > n - 1)) {
+    const int i = u < 0.0 ? 0 : n - 2;
+    const double t = u - i;
+    visit(i, 1.0 - t);
+    visit(i + 1, t);
+  } else if (u <= 0.0) {
     visit(0, 1.0);
   } else if (u >= n - 1) {
     visit(n - 1, 1.0);
@@ -173,7 +190,11 @@ std::vector<double> interpolationMass(int length, int n, int f) {
 // weight * G(image) + (1 - weight) * image through an f-times smaller image:
 // block means -> Gaussian of about sigma_px / f -> bilinear interpolation back
 // (header of gaussianBlur). Works in place: `image` becomes the result.
-Image blurReduced(Image image, double sigma_px, int f, double weight) {
+// With a zero border the blocks past the image hold zeros, the small image is
+// blurred with zero padding and the sum is not restored (what leaves the
+// image is lost, as it should be).
+Image blurReduced(Image image, double sigma_px, int f, double weight, BlurBorder border) {
+  const bool mirror = border == BlurBorder::kMirror;
   const int width = image.width(), height = image.height();
   const int nx = (width + f - 1) / f, ny = (height + f - 1) / f;
   const double f2 = static_cast<double>(f) * f;
@@ -192,6 +213,7 @@ Image blurReduced(Image image, double sigma_px, int f, double weight) {
           for (const double c : columns) sum += c;
           block_row_sums[static_cast<size_t>(j)] = sum;
         }
+        if (!mirror && y >= height) continue;
         const float* row = image.row(reflect(y, height));
         for (int x = 0; x < width; ++x)
           columns[static_cast<size_t>(x)] += static_cast<double>(row[x]);
@@ -207,7 +229,7 @@ Image blurReduced(Image image, double sigma_px, int f, double weight) {
           for (int x = i * f; x < (i + 1) * f; ++x) sum += columns[static_cast<size_t>(x)];
         } else {
           for (int x = i * f; x < (i + 1) * f; ++x)
-            sum += columns[static_cast<size_t>(reflect(x, width))];
+            if (mirror || x < width) sum += columns[static_cast<size_t>(reflect(x, width))];
         }
         means(i, j) = sum / f2;
       }
@@ -221,8 +243,8 @@ Image blurReduced(Image image, double sigma_px, int f, double weight) {
   const double sigma_small = std::sqrt(sigma_px * sigma_px - (f2 - 1.0) / 12.0 - f2 / 6.0) / f;
   const std::vector<double> taps = gaussianTaps(sigma_small);
   ImageT<double> columns(nx, ny), blurred(nx, ny);
-  convolveColumns<double>(means, columns, taps);
-  convolveRows<double>(columns, blurred, taps, 1.0, 0.0, columns);
+  convolveColumns<double>(means, columns, taps, border);
+  convolveRows<double>(columns, blurred, taps, 1.0, 0.0, columns, border);
 
   // Keep the sum. The interpolation gives sample (i, j) the total weight
   // mass_x[i] * mass_y[j] over the image, which is f^2 for every sample when
@@ -240,7 +262,7 @@ Image blurReduced(Image image, double sigma_px, int f, double weight) {
     }
   }
   const double correction =
-      blurred_abs_sum > 0.0 ? (image_sum - blurred_sum) / blurred_abs_sum : 0.0;
+      mirror && blurred_abs_sum > 0.0 ? (image_sum - blurred_sum) / blurred_abs_sum : 0.0;
   Image density(nx, ny);
   for (int j = 0; j < ny; ++j)
     for (int i = 0; i < nx; ++i)
@@ -258,16 +280,18 @@ Image blurReduced(Image image, double sigma_px, int f, double weight) {
     for (int y = rows.begin(); y < rows.end(); ++y) {
       // Vertical interpolation of the sample rows into `line`.
       std::fill(line.begin(), line.end(), 0.0f);
-      interpolationWeights(y, ny, f, [&](int j, double w) {
-        const float wf = static_cast<float>(w);
-        const float* sample_row = density.row(j);
-        for (int i = 0; i < nx; ++i) line[static_cast<size_t>(i)] += wf * sample_row[i];
-      });
+      interpolationWeights(
+          y, ny, f,
+          [&](int j, double w) {
+            const float wf = static_cast<float>(w);
+            const float* sample_row = density.row(j);
+            for (int i = 0; i < nx; ++i) line[static_cast<size_t>(i)] += wf * sample_row[i];
+          },
+          !mirror);
       // Horizontal interpolation: constant before the first and after the
       // last sample, linear between.
       float* b = blurred_row.data();
       const int lead = std::min(width, f / 2);
-      for (int x = 0; x < lead; ++x) b[x] = line[0];
       for (int i = 0; i + 1 < nx; ++i) {
         const int x0 = i * f + f / 2;
         const int count = std::min(f, width - x0);
@@ -275,8 +299,23 @@ Image blurReduced(Image image, double sigma_px, int f, double weight) {
         for (int m = 0; m < count; ++m)
           b[x0 + m] = (1.0f - t[static_cast<size_t>(m)]) * left + t[static_cast<size_t>(m)] * right;
       }
-      for (int x = std::max(lead, (nx - 1) * f + f / 2); x < width; ++x)
-        b[x] = line[static_cast<size_t>(nx) - 1];
+      if (mirror || nx < 2) {
+        for (int x = 0; x < lead; ++x) b[x] = line[0];
+        for (int x = std::max(lead, (nx - 1) * f + f / 2); x < width; ++x)
+          b[x] = line[static_cast<size_t>(nx) - 1];
+      } else {
+        for (int x = 0; x < width; ++x) {
+          const double u = (x + 0.5) / f - 0.5;
+          if (u >= 0.0 && u <= nx - 1) continue;
+          b[x] = 0.0f;
+          interpolationWeights(
+              x, nx, f,
+              [&](int i, double w) {
+                b[x] += static_cast<float>(w) * line[static_cast<size_t>(i)];
+              },
+              true);
+        }
+      }
       // Mix with the original row, which this overwrites.
       float* o = image.row(y);
       for (int x = 0; x < width; ++x) o[x] = b[x] + keep * o[x];
@@ -285,7 +324,8 @@ Image blurReduced(Image image, double sigma_px, int f, double weight) {
   return image;
 }
 
-Image blurMix(Image image, double sigma_px, double weight) {
+Image blurMix(Image image, double sigma_px, double weight,
+              BlurBorder border = BlurBorder::kMirror) {
   if (!std::isfinite(sigma_px) || sigma_px < 0.0)
     fail("Gaussian blur sigma must be finite and >= 0 px, got {}", sigma_px);
   if (!(weight >= 0.0 && weight <= 1.0)) fail("scatter weight must be in [0, 1], got {}", weight);
@@ -293,17 +333,17 @@ Image blurMix(Image image, double sigma_px, double weight) {
   // Reduce by the largest power of two that leaves >= 8 px of sigma.
   int f = 1;
   while (sigma_px / (2.0 * f) >= 8.0 && f < (1 << 20)) f *= 2;
-  return f == 1 ? blurDirect(image, sigma_px, weight)
-                : blurReduced(std::move(image), sigma_px, f, weight);
+  return f == 1 ? blurDirect(image, sigma_px, weight, border)
+                : blurReduced(std::move(image), sigma_px, f, weight, border);
 }
 
 }  // namespace
 
-Image gaussianBlur(Image image, double sigma_px) {
-  return blurMix(std::move(image), sigma_px, 1.0);
+Image gaussianBlur(Image image, double sigma_px, BlurBorder border) {
+  return blurMix(std::move(image), sigma_px, 1.0, border);
 }
 
-Image gaussianBlurAround(const Image& image, double sigma_px, float outside) {
+Image gaussianBlurAround(const Image& image, double sigma_px, float outside, BlurBorder border) {
   if (!std::isfinite(sigma_px) || sigma_px < 0.0)
     fail("Gaussian blur sigma must be finite and >= 0 px, got {}", sigma_px);
   const int width = image.width(), height = image.height();
@@ -318,17 +358,25 @@ Image gaussianBlurAround(const Image& image, double sigma_px, float outside) {
   if (x1 < 0 || sigma_px == 0.0) return image;  // constant: its blur is itself
   int f = 1;
   while (sigma_px / (2.0 * f) >= 8.0 && f < (1 << 20)) f *= 2;
-  if (f > 1) return gaussianBlur(image, sigma_px);
+  if (f > 1 && border == BlurBorder::kMirror) return gaussianBlur(image, sigma_px);
+  if (f > 1) {
+    Image shifted = image;
+    for (float& value : shifted.pixels()) value -= outside;
+    shifted = gaussianBlur(std::move(shifted), sigma_px, BlurBorder::kZero);
+    for (float& value : shifted.pixels()) value += outside;
+    return shifted;
+  }
   // The direct path's taps folded by the mirror onto the support's rows and
   // columns: w(y, j) = sum of taps[k] over the k with reflect(y + k) = j.
   const std::vector<float> taps = floatTaps(gaussianTaps(sigma_px));
   const int radius = static_cast<int>(taps.size() / 2);
   const auto folded = [&](int n, int first, int last) {
     Eigen::MatrixXd w = Eigen::MatrixXd::Zero(n, last - first + 1);
-    const std::vector<int> reflected = reflectedIndices(n, radius);
+    const std::vector<int> reflected = reflectedIndices(n, radius, border);
     for (int y = 0; y < n; ++y)
       for (int k = -radius; k <= radius; ++k) {
         const int j = reflected[static_cast<size_t>(y + k + radius)];
+        if (j < 0) continue;
         if (j >= first && j <= last)
           w(y, j - first) += static_cast<double>(taps[static_cast<size_t>(k + radius)]);
       }

@@ -3,28 +3,191 @@
 #include "xgauge/image/blur.h"
 #include "xgauge/image/stats.h"
 
+#include <cmath>
+#include <string>
+
 namespace xgauge {
+
+const char* toString(HaloShape shape) {
+  switch (shape) {
+    case HaloShape::kGaussian:
+      return "gaussian";
+    case HaloShape::kGaussExp:
+      return "gauss_exp";
+    case HaloShape::kTwoGauss:
+      return "two_gauss";
+  }
+  return "?";
+}
+
+const char* toString(HaloBorder border) { return border == HaloBorder::kOpen ? "open" : "mirror"; }
+
+namespace {
+
+HaloShape shapeFrom(const ConfigNode& node) {
+  const std::string name = node.string();
+  if (name == "gaussian") return HaloShape::kGaussian;
+  if (name == "gauss_exp") return HaloShape::kGaussExp;
+  if (name == "two_gauss") return HaloShape::kTwoGauss;
+  node.fail("unknown halo shape '" + name + "' (gaussian, gauss_exp, two_gauss)");
+}
+
+HaloBorder borderFrom(const ConfigNode& node) {
+  const std::string name = node.string();
+  if (name == "mirror") return HaloBorder::kMirror;
+  if (name == "open") return HaloBorder::kOpen;
+  node.fail("unknown halo border '" + name + "' (mirror, open)");
+}
+
+// An optional uncertainty key, `fallback` when absent.
+double uncertainty(const ConfigNode& node, const char* key, double fallback, double max) {
+  if (auto u = node.find(key)) return u->number(0.0, max);
+  return fallback;
+}
+
+}  // namespace
 
 ScatterModel ScatterModel::fromConfig(const ConfigNode& node) {
   ScatterModel out;
   out.weight = node.at("weight").number(0.0, 0.9);
-  out.sigma_mm = node.at("sigma_mm").number(0.01, 1e4);
-  out.weight_uncertainty = 0.05 * out.weight;
-  out.sigma_uncertainty_mm = 0.1 * out.sigma_mm;
-  if (auto u = node.find("weight_uncertainty")) out.weight_uncertainty = u->number(0.0, 0.5);
-  if (auto u = node.find("sigma_uncertainty_mm")) out.sigma_uncertainty_mm = u->number(0.0, 1e4);
+  if (auto shape = node.find("shape")) out.shape = shapeFrom(*shape);
+  if (auto border = node.find("border")) out.border = borderFrom(*border);
+  const char* sigma_key = out.shape == HaloShape::kTwoGauss ? "sigma1_mm" : "sigma_mm";
+  out.sigma_mm = node.at(sigma_key).number(0.01, 1e4);
+  // The defaults: 5 % of the weight and 10 % of a width, what a fit of the
+  // halo around an edge typically leaves; fractions +- 0.05.
+  out.weight_uncertainty = uncertainty(node, "weight_uncertainty", 0.05 * out.weight, 0.5);
+  out.sigma_uncertainty_mm = uncertainty(node, "sigma_uncertainty_mm", 0.1 * out.sigma_mm, 1e4);
+  if (out.shape == HaloShape::kGaussExp) {
+    out.tail_fraction = node.at("tail_fraction").number(0.0, 1.0);
+    out.tail_length_mm = node.at("tail_length_mm").number(0.01, 1e4);
+    out.tail_fraction_uncertainty = uncertainty(node, "tail_fraction_uncertainty", 0.05, 1.0);
+    out.tail_length_uncertainty_mm =
+        uncertainty(node, "tail_length_uncertainty_mm", 0.1 * out.tail_length_mm, 1e4);
+  } else if (out.shape == HaloShape::kTwoGauss) {
+    out.sigma2_mm = node.at("sigma2_mm").number(0.01, 1e4);
+    out.fraction2 = node.at("fraction2").number(0.0, 1.0);
+    out.sigma2_uncertainty_mm =
+        uncertainty(node, "sigma2_uncertainty_mm", 0.1 * out.sigma2_mm, 1e4);
+    out.fraction2_uncertainty = uncertainty(node, "fraction2_uncertainty", 0.05, 1.0);
+  }
   return out;
 }
 
 nlohmann::json ScatterModel::toJson() const {
-  return {{"weight", weight},
-          {"sigma_mm", sigma_mm},
-          {"weight_uncertainty", weight_uncertainty},
-          {"sigma_uncertainty_mm", sigma_uncertainty_mm}};
+  nlohmann::json out = {{"weight", weight}, {"weight_uncertainty", weight_uncertainty}};
+  const bool two = shape == HaloShape::kTwoGauss;
+  out[two ? "sigma1_mm" : "sigma_mm"] = sigma_mm;
+  out["sigma_uncertainty_mm"] = sigma_uncertainty_mm;
+  if (isMirroredGaussian()) return out;  // the four keys it always wrote
+  out["shape"] = toString(shape);
+  out["border"] = toString(border);
+  if (shape == HaloShape::kGaussExp) {
+    out["tail_fraction"] = tail_fraction;
+    out["tail_length_mm"] = tail_length_mm;
+    out["tail_fraction_uncertainty"] = tail_fraction_uncertainty;
+    out["tail_length_uncertainty_mm"] = tail_length_uncertainty_mm;
+  } else if (two) {
+    out["sigma2_mm"] = sigma2_mm;
+    out["fraction2"] = fraction2;
+    out["sigma2_uncertainty_mm"] = sigma2_uncertainty_mm;
+    out["fraction2_uncertainty"] = fraction2_uncertainty;
+  }
+  return out;
 }
 
-Image ScatterModel::apply(Image image, double pitch_mm) const {
-  return scatterBlur(std::move(image), weight, sigmaPx(pitch_mm));
+std::vector<GaussianTerm> ScatterModel::components() const {
+  switch (shape) {
+    case HaloShape::kGaussian:
+      return {{1.0, sigma_mm}};
+    case HaloShape::kTwoGauss:
+      return {{1.0 - fraction2, sigma_mm}, {fraction2, sigma2_mm}};
+    case HaloShape::kGaussExp: {
+      std::vector<GaussianTerm> out{{1.0 - tail_fraction, sigma_mm}};
+      double sum = 0.0;
+      for (const GaussianTerm& t : kExponentialTailMixture) sum += t.fraction;
+      for (const GaussianTerm& t : kExponentialTailMixture)
+        out.push_back({tail_fraction * t.fraction / sum, t.sigma * tail_length_mm});
+      return out;
+    }
+  }
+  return {};
+}
+
+double ScatterModel::equivalentSigmaMm() const {
+  // E[r^2] of a 2-D Gaussian is 2 sigma^2, of the exponential 6 lambda^2:
+  // closed forms, not the mixture's.
+  switch (shape) {
+    case HaloShape::kGaussian:
+      return sigma_mm;
+    case HaloShape::kTwoGauss:
+      return std::sqrt((1.0 - fraction2) * sigma_mm * sigma_mm + fraction2 * sigma2_mm * sigma2_mm);
+    case HaloShape::kGaussExp:
+      return std::sqrt((1.0 - tail_fraction) * sigma_mm * sigma_mm +
+                       3.0 * tail_fraction * tail_length_mm * tail_length_mm);
+  }
+  return sigma_mm;
+}
+
+Image ScatterModel::spread(Image image, double pitch_mm, float outside) const {
+  const bool open = border == HaloBorder::kOpen;
+  const BlurBorder blur_border = open ? BlurBorder::kZero : BlurBorder::kMirror;
+  if (open)
+    for (float& value : image.pixels()) value -= outside;
+  Image total;
+  for (const GaussianTerm& term : components()) {
+    if (term.fraction <= 0.0) continue;
+    Image blurred = gaussianBlur(image, term.sigma / pitch_mm, blur_border);
+    const auto f = static_cast<float>(term.fraction);
+    if (total.empty()) {
+      for (float& value : blurred.pixels()) value *= f;
+      total = std::move(blurred);
+    } else {
+      auto t = total.pixels();
+      const auto b = blurred.pixels();
+      for (size_t i = 0; i < t.size(); ++i) t[i] += f * b[i];
+    }
+  }
+  if (open)
+    for (float& value : total.pixels()) value += outside;
+  return total;
+}
+
+Image ScatterModel::spreadAround(const Image& image, double pitch_mm, float outside,
+                                 double sigma_shrink_px2) const {
+  const BlurBorder blur_border =
+      border == HaloBorder::kOpen ? BlurBorder::kZero : BlurBorder::kMirror;
+  Image total;
+  for (const GaussianTerm& term : components()) {
+    if (term.fraction <= 0.0) continue;
+    const double sigma = term.sigma / pitch_mm;
+    Image blurred = gaussianBlurAround(
+        image, std::sqrt(std::max(sigma * sigma - sigma_shrink_px2, 0.25 * sigma * sigma)), outside,
+        blur_border);
+    if (term.fraction == 1.0) return blurred;  // a single Gaussian: as it always was
+    const auto f = static_cast<float>(term.fraction);
+    if (total.empty()) {
+      for (float& value : blurred.pixels()) value *= f;
+      total = std::move(blurred);
+    } else {
+      auto t = total.pixels();
+      const auto b = blurred.pixels();
+      for (size_t i = 0; i < t.size(); ++i) t[i] += f * b[i];
+    }
+  }
+  return total;
+}
+
+Image ScatterModel::apply(Image image, double pitch_mm, float outside) const {
+  if (isMirroredGaussian()) return scatterBlur(std::move(image), weight, sigmaPx(pitch_mm));
+  if (!(weight >= 0.0 && weight <= 1.0)) fail("scatter weight must be in [0, 1], got {}", weight);
+  if (weight == 0.0 || image.empty()) return image;
+  const Image spreaded = spread(image, pitch_mm, outside);
+  auto out = image.pixels();
+  const auto g = spreaded.pixels();
+  for (size_t i = 0; i < out.size(); ++i)
+    out[i] = static_cast<float>(mix(static_cast<double>(out[i]), static_cast<double>(g[i])));
+  return image;
 }
 
 Image ScatterModel::remove(const Image& normalized, double pitch_mm, const PixelRect& white,
@@ -36,10 +199,12 @@ Image ScatterModel::remove(const Image& normalized, double pitch_mm, const Pixel
   Image estimate = normalized;
   if (weight == 0.0) return estimate;
   for (int iteration = 0; iteration < iterations; ++iteration) {
-    const Image spread = gaussianBlur(estimate, sigmaPx(pitch_mm));
-    const double open = mix(1.0, meanOf(spread, white));
+    // The estimate is a transmission: the open beam beyond the panel is 1.
+    const Image spreaded = isMirroredGaussian() ? gaussianBlur(estimate, sigmaPx(pitch_mm))
+                                                : spread(estimate, pitch_mm, 1.0f);
+    const double open = mix(1.0, meanOf(spreaded, white));
     const auto n = normalized.pixels();
-    const auto g = spread.pixels();
+    const auto g = spreaded.pixels();
     auto out = estimate.pixels();
     for (size_t i = 0; i < out.size(); ++i)
       out[i] = static_cast<float>(

@@ -368,12 +368,11 @@ ScatterEstimate ForwardModel::spreadOf(const Image& coarse, int coarse_level, in
   // The coarse pixels' area (a box of 1/12 coarse pixel^2 of variance) and
   // the bilinear interpolation back (1/6) widen the kernel: taken off here,
   // as blur.cpp's reduced blur does.
-  const double sigma = job().scatter.sigma_mm / machineAt(coarse_level).pitch_u_mm;
   // Outside the part's shadow the render is the open beam (1) and a
-  // derivative image 0: only the shadow's rows and columns are summed.
-  out.blurred =
-      gaussianBlurAround(coarse, std::sqrt(std::max(sigma * sigma - 0.25, 0.25 * sigma * sigma)),
-                         derivative ? 0.0f : 1.0f);
+  // derivative image 0: only the shadow's rows and columns are summed. With
+  // an open border the world beyond the panel is that level too.
+  out.blurred = job().scatter.spreadAround(coarse, machineAt(coarse_level).pitch_u_mm,
+                                           derivative ? 0.0f : 1.0f, 0.25);
   // The model's open-beam level in the white region (full-size coordinates).
   const PixelRect white = spec(radiograph).white_region;
   const double full_to_coarse = 1.0 / static_cast<double>(1 << coarse_level);

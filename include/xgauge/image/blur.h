@@ -6,6 +6,11 @@
 
 namespace xgauge {
 
+// What a blur sees beyond the image's edges: the image mirrored (below), or
+// zeros. A zero border blurs (image - outside) to take the world beyond a
+// detector as a constant level (the open beam, image/scatter.h).
+enum class BlurBorder { kMirror, kZero };
+
 // Gaussian blur with standard deviation `sigma_px` (pixels, >= 0; 0 returns a
 // copy) and half-sample-symmetric mirror boundaries (the image reflected about
 // its outer pixel edges, and again as often as a wide kernel needs).
@@ -39,7 +44,10 @@ namespace xgauge {
 // 64 MiB of fresh pages cost more than the blur itself: 30 ms against 10).
 //
 // Throws Error if sigma_px is negative or not finite.
-Image gaussianBlur(Image image, double sigma_px);
+// With BlurBorder::kZero the samples beyond the image are zeros instead (the
+// large-sigma path then pads its edge blocks with zeros and does not restore
+// the sum: what spreads past the edge is lost).
+Image gaussianBlur(Image image, double sigma_px, BlurBorder border = BlurBorder::kMirror);
 
 // gaussianBlur of an image that equals `outside` wherever it is not some
 // feature (the background of a render, or zero around a derivative image):
@@ -51,8 +59,11 @@ Image gaussianBlur(Image image, double sigma_px);
 // than the part's shadow (measured: a fifth of the direct convolution's
 // time there). Equal to gaussianBlur within float rounding (a few 1e-7) where
 // gaussianBlur takes its direct path (sigma below 16 px), which it is for
-// larger sigma. Throws Error as gaussianBlur.
-Image gaussianBlurAround(const Image& image, double sigma_px, float outside);
+// larger sigma. With BlurBorder::kZero the world beyond the image is
+// `outside` too (outside + G(image - outside) with zero padding), the open
+// beam beyond a panel. Throws Error as gaussianBlur.
+Image gaussianBlurAround(const Image& image, double sigma_px, float outside,
+                         BlurBorder border = BlurBorder::kMirror);
 
 // weight * G(image, sigma_px) + (1 - weight) * image, fused so that a large
 // blur works in place; ScatterModel::apply is the scatter built on it (the

@@ -579,6 +579,7 @@ struct Case {
   double offset_px;      // principal point right of the centre
   double turn_deg;       // the block turned about the beam
   double weight, sigma_px, darkening;
+  HaloBorder border = HaloBorder::kMirror;  // what the halo sees beyond the panel
 };
 
 // The wedge block rendered with an aluminium-like curve, scattered, darkened,
@@ -595,7 +596,13 @@ Image wedgeShot(const Case& s, uint64_t seed) {
   Pose pose = Pose::fromEulerDeg(Vec3(0, 0, s.turn_deg), Vec3(0.0, 0.0, z));
   pose.translation_mm += pose.rotation * Vec3(0.0, -45.0, 0.0);
   Image image = renderWedgeBlock(machine, pose, 2);
-  image = scatterBlur(std::move(image), s.weight, s.sigma_px);
+  if (s.border == HaloBorder::kMirror) {
+    image = scatterBlur(std::move(image), s.weight, s.sigma_px);
+  } else {
+    ScatterModel halo;
+    halo.weight = s.weight, halo.sigma_mm = s.sigma_px * s.pitch_mm, halo.border = s.border;
+    image = halo.apply(std::move(image), s.pitch_mm, 1.0f);
+  }
   darkenColumns(image, s.darkening);
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> noise(0.0, 0.003);
@@ -633,6 +640,39 @@ TEST(ScatterHalo, WeightAndWidthComeBackOverARangeOfSetups) {
     // Without the scatter and the darkening the open beam is flat at 1.
     EXPECT_NEAR(fit.primary(3, 3), 1.0, 0.02);
     EXPECT_NEAR(fit.primary(s.side - 4, s.side / 2), 1.0, 0.02);
+  }
+}
+
+// A halo whose panel sees open beam beyond its edges, and one mirrored:
+// each border comes back, and with it the weight and width within their
+// stated uncertainties. Fitted with the mirror alone, the open-border shot's
+// halo is not found.
+TEST(ScatterHalo, ThePanelsBorderComesBackWithTheHalo) {
+  setProgressEnabled(false);
+  for (const HaloBorder border : {HaloBorder::kOpen, HaloBorder::kMirror}) {
+    SCOPED_TRACE(toString(border));
+    const Case s{512, 0.4, 2.0, 0.0, 0.0, 0.139, 125.0, 0.0, border};
+    const Image image = wedgeShot(s, 11);
+    const HaloFit fit = fitScatterHalo(image, s.pitch_mm, "shot.tif");
+    EXPECT_EQ(fit.scatter.border, border);
+    EXPECT_LE(std::abs(fit.scatter.weight - s.weight), 2.0 * fit.scatter.weight_uncertainty)
+        << "weight " << fit.scatter.weight << " +- " << fit.scatter.weight_uncertainty;
+    EXPECT_LE(std::abs(fit.scatter.sigma_mm - s.sigma_px * s.pitch_mm),
+              2.0 * fit.scatter.sigma_uncertainty_mm)
+        << "sigma " << fit.scatter.sigma_mm << " +- " << fit.scatter.sigma_uncertainty_mm;
+    EXPECT_NEAR(fit.primary(3, 3), 1.0, 0.02);
+  }
+  HaloOptions mirror_only;
+  mirror_only.borders = {HaloBorder::kMirror};
+  const Case open{512, 0.4, 2.0, 0.0, 0.0, 0.139, 125.0, 0.0, HaloBorder::kOpen};
+  // (It ends at a narrow width with a weight no scintillator has, 0.69,
+  // and is refused as no scatter, or, should it pass, off by far more.)
+  try {
+    const HaloFit wrong = fitScatterHalo(wedgeShot(open, 11), 0.4, "shot.tif", mirror_only);
+    EXPECT_GT(std::abs(wrong.scatter.weight - 0.139), 0.01) << wrong.scatter.weight;
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("does not fit the open beam"), std::string::npos)
+        << e.what();
   }
 }
 

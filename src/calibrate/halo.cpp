@@ -31,6 +31,17 @@ std::vector<double> columnAttenuation(const Image& n) {
   return out;
 }
 
+// K * P for the halo's width and border: mirrored at the panel's edges, or
+// with open beam (a primary of 1) beyond them.
+Image haloBlur(const Image& primary, double sigma_px, HaloBorder border) {
+  if (border == HaloBorder::kMirror) return gaussianBlur(primary, sigma_px);
+  Image shifted = primary;
+  for (float& v : shifted.pixels()) v -= 1.0f;
+  Image blurred = gaussianBlur(std::move(shifted), sigma_px, BlurBorder::kZero);
+  for (float& v : blurred.pixels()) v += 1.0f;
+  return blurred;
+}
+
 // P = (n - b G(P) - c A) / a: one step of the fixed point, which contracts by
 // about b / a = w / (1 - w) per step.
 void primaryStep(const Image& n, const std::vector<double>& attenuation, const Coefficients& k,
@@ -46,10 +57,10 @@ void primaryStep(const Image& n, const std::vector<double>& attenuation, const C
 constexpr int kFixedPointSteps = 9;
 
 Image solvePrimary(const Image& n, const std::vector<double>& attenuation, const Coefficients& k,
-                   double sigma_px) {
+                   double sigma_px, HaloBorder border) {
   Image primary = n;
   for (int step = 0; step < kFixedPointSteps; ++step)
-    primaryStep(n, attenuation, k, gaussianBlur(primary, sigma_px), primary);
+    primaryStep(n, attenuation, k, haloBlur(primary, sigma_px, border), primary);
   return primary;
 }
 
@@ -90,6 +101,7 @@ PixelRect shadowBox(const Image& n, const std::string& name) {
 // alternated with the fixed point for P.
 struct WidthFit {
   double sigma_px = 0.0;  // binned pixels
+  HaloBorder border = HaloBorder::kMirror;
   Coefficients k;
   double rms = 0.0;
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
@@ -102,14 +114,15 @@ struct WidthFit {
 constexpr int kCorrelationBlock = 16;
 
 WidthFit fitAtWidth(const Image& n, const std::vector<double>& attenuation,
-                    const std::vector<int>& open, double sigma_px) {
+                    const std::vector<int>& open, double sigma_px, HaloBorder border) {
   WidthFit out;
   out.sigma_px = sigma_px;
+  out.border = border;
   Image primary = n;
   const auto values = n.pixels();
   Eigen::Matrix3d normal;
   for (int step = 0; step < kFixedPointSteps; ++step) {
-    const Image blurred = gaussianBlur(primary, sigma_px);
+    const Image blurred = haloBlur(primary, sigma_px, border);
     const auto g = blurred.pixels();
     normal.setZero();
     Eigen::Vector3d right = Eigen::Vector3d::Zero();
@@ -223,35 +236,91 @@ double shadowChange(const Image& smooth, const std::vector<int>& open, double si
   return static_cast<double>(*middle);
 }
 
-// The width's search and what follows from its best fit, shared by both
-// estimates: `fitAt(sigma_px)` fits (a, b, c) at one width (binned pixels)
-// over the pixels `open` (sorted) of `n`, the radiograph binned; `out` has
-// its binning and shadow set.
+// The width's profile over the logarithmic grid of searchWidth, for one
+// border: `fitAt(sigma_px, border)`.
 template <typename FitAt>
-void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& open,
+std::vector<WidthFit> widthGrid(const FitAt& fitAt, HaloBorder border, double low, double high,
+                                int points, double binned_pitch, const std::string& name) {
+  std::vector<WidthFit> grid;
+  for (int i = 0; i < points; ++i) {
+    const double sigma = low * std::pow(high / low, i / (points - 1.0));
+    grid.push_back(fitAt(sigma, border));
+    spdlog::debug(
+        "{}: halo ({} border) at sigma {:.3g} mm: rms {:.6g}, weight {:.4f}, correlation {:.1f}",
+        name, toString(border), sigma * binned_pitch, grid.back().rms, weightOf(grid.back().k),
+        grid.back().correlation);
+  }
+  return grid;
+}
+
+int bestOf(const std::vector<WidthFit>& grid) {
+  return static_cast<int>(
+      std::min_element(grid.begin(), grid.end(),
+                       [](const WidthFit& p, const WidthFit& q) { return p.rms < q.rms; }) -
+      grid.begin());
+}
+
+// The interval of ln(sigma) around the best width `t0` over which the open
+// beam's residual sum of squares S stays within `limit`: the profile of the
+// loss, which a flat or lopsided minimum widens where the curvature at the
+// optimum would not. Each side is bracketed by the grid (`grid`, ascending
+// widths) and bisected; a side that reaches the grid's end stays there.
+template <typename SumAt>
+std::pair<double, double> profileInterval(const SumAt& sumAt, const std::vector<WidthFit>& grid,
+                                          double t0, double limit) {
+  auto side = [&](int direction) {
+    double inside = t0, outside = NAN;
+    const int n = static_cast<int>(grid.size());
+    for (int i = direction > 0 ? 0 : n - 1; i >= 0 && i < n; i += direction) {
+      const double t = std::log(grid[static_cast<size_t>(i)].sigma_px);
+      if ((t - t0) * direction <= 0.0) continue;
+      if (!(sumAt(t) <= limit)) {
+        outside = t;
+        break;
+      }
+      inside = t;
+    }
+    if (std::isnan(outside)) return inside;
+    for (int k = 0; k < 8; ++k) {
+      const double mid = 0.5 * (inside + outside);
+      (sumAt(mid) <= limit ? inside : outside) = mid;
+    }
+    return inside;
+  };
+  return {side(-1), side(+1)};
+}
+
+// The width's search and what follows from its best fit, shared by both
+// estimates: `fitAt(sigma_px, border)` fits (a, b, c) at one width (binned
+// pixels) over the pixels `open` (sorted) of `n`, the radiograph binned;
+// `out` has its binning and shadow set.
+template <typename FitAtBorder>
+void searchWidth(const FitAtBorder& fitAtBorder, const Image& n, const std::vector<int>& open,
                  const Image& normalized, double pitch_mm, const std::string& name,
                  const HaloOptions& options, HaloFit& out) {
   const size_t count = open.size();
-  // The width: a logarithmic grid, then golden sections around its best point.
+  // The width: a logarithmic grid per border, the border whose grid fits the
+  // open beam best, then golden sections around its best point.
   const int width = std::max(normalized.width(), normalized.height()) / out.binning;
   const double binned_pitch = pitch_mm * out.binning;
   const double low = std::max(options.min_sigma_px, options.min_sigma_mm / pitch_mm) / out.binning;
   const double high = options.max_sigma_fraction * width;
   constexpr int kGrid = 24;
-  std::vector<WidthFit> grid;
-  for (int i = 0; i < kGrid; ++i) {
-    const double sigma = low * std::pow(high / low, i / (kGrid - 1.0));
-    grid.push_back(fitAt(sigma));
-    out.sigma_mm.push_back(sigma * binned_pitch);
-    out.residual_rms.push_back(grid.back().rms);
-    spdlog::debug("{}: halo at sigma {:.3g} mm: rms {:.6g}, weight {:.4f}, correlation {:.1f}",
-                  name, sigma * binned_pitch, grid.back().rms, weightOf(grid.back().k),
-                  grid.back().correlation);
-  }
-  const auto best_at = static_cast<int>(
-      std::min_element(grid.begin(), grid.end(),
-                       [](const WidthFit& p, const WidthFit& q) { return p.rms < q.rms; }) -
-      grid.begin());
+  XG_CHECK(!options.borders.empty(), "a halo search needs a border to try");
+  std::vector<std::vector<WidthFit>> grids;
+  for (const HaloBorder border : options.borders)
+    grids.push_back(widthGrid(fitAtBorder, border, low, high, kGrid, binned_pitch, name));
+  size_t chosen = 0;
+  for (size_t b = 1; b < grids.size(); ++b)
+    if (grids[b][static_cast<size_t>(bestOf(grids[b]))].rms <
+        grids[chosen][static_cast<size_t>(bestOf(grids[chosen]))].rms)
+      chosen = b;
+  const HaloBorder border = options.borders[chosen];
+  const std::vector<WidthFit>& grid = grids[chosen];
+  const auto fitAt = [&](double sigma) { return fitAtBorder(sigma, border); };
+  for (const WidthFit& fit : grid)
+    out.sigma_mm.push_back(fit.sigma_px * binned_pitch), out.residual_rms.push_back(fit.rms);
+  const int best_at = bestOf(grid);
   WidthFit best = grid[static_cast<size_t>(best_at)];
   // What no detector does: the fit has explained something else.
   // At the narrowest width the blur is about 1 all over the open beam, which
@@ -334,7 +403,7 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
     out.unseen_change = effect / kProfileSigmas;
     // Without a halo G(P) is 1 in the open beam: a + b is its level.
     out.primary = solvePrimary(normalized, columnAttenuation(normalized),
-                               {best.k.a + best.k.b, 0.0, best.k.c}, 1.0);
+                               {best.k.a + best.k.b, 0.0, best.k.c}, 1.0, HaloBorder::kMirror);
     return;
   }
   if (best_at == kGrid - 1)
@@ -369,7 +438,7 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   const double t = std::log(best.sigma_px), h = 0.05;
   const WidthFit minus = at(t - h), plus = at(t + h);
   const double curvature = (sum(plus) - 2.0 * sum(best) + sum(minus)) / (h * h);
-  const double u_log_sigma =
+  double u_log_sigma =
       curvature > 0.0 ? std::sqrt(2.0 * correlation * best.rms * best.rms / curvature) : HUGE_VAL;
   const WidthFit wider = at(t + std::min(u_log_sigma, 0.5)),
                  narrower = at(t - std::min(u_log_sigma, 0.5));
@@ -379,11 +448,42 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   double lowest = HUGE_VAL, highest = -HUGE_VAL;
   for (const AllowedWeights& allowed : allowedWeights(best))
     lowest = std::min(lowest, allowed.low), highest = std::max(highest, allowed.high);
-  const double u_weight = std::max(
+  double u_weight = std::max(
       std::hypot(weightUncertainty(best) * std::sqrt(correlation),
                  0.5 * std::abs(weightOf(wider.k) - weightOf(narrower.k))),
       (highest - lowest) / (2.0 * kProfileSigmas));
   const double sigma_mm = best.sigma_px * binned_pitch;
+  // The profile of the loss over the width (one standard deviation: S within
+  // c rms^2 of its least), rather than only its curvature at the optimum:
+  // the widths and weights that fit the open beam within its noise.
+  {
+    const auto [t_low, t_high] = profileInterval(
+        [&](double ln_sigma) { return sum(at(ln_sigma)); }, grid, t,
+        sum(best) + correlation * best.rms * best.rms);
+    const double w_low = weightOf(at(t_low).k), w_high = weightOf(at(t_high).k);
+    spdlog::debug("{}: the halo's width profile: sigma {:.3g} .. {:.3g} mm, weight {:.4f} .. {:.4f}",
+                  name, std::exp(t_low) * binned_pitch, std::exp(t_high) * binned_pitch, w_low,
+                  w_high);
+    u_log_sigma = std::max(u_log_sigma, std::max(t - t_low, t_high - t));
+    u_weight = std::max(u_weight, std::max(std::abs(w_low - weight), std::abs(w_high - weight)));
+  }
+  // The other borders: one whose best width fits the open beam as well
+  // (its S within kProfileSigmas^2 c rms^2 of the chosen one's) is not ruled
+  // out by the shot, and the halo's uncertainty covers both (half their
+  // difference, as a standard uncertainty).
+  for (size_t b = 0; b < grids.size(); ++b) {
+    if (b == chosen) continue;
+    const WidthFit& other = grids[b][static_cast<size_t>(bestOf(grids[b]))];
+    const double excess = (sum(other) - sum(best)) / (correlation * best.rms * best.rms);
+    spdlog::info(
+        "{}: the halo with a {} border: weight {:.4f}, sigma {:.3g} mm, its open beam's residual "
+        "sum of squares {:.1f} (correlated) variances above the {} border's",
+        name, toString(options.borders[b]), weightOf(other.k), other.sigma_px * binned_pitch,
+        excess, toString(border));
+    if (!(excess <= kProfileSigmas * kProfileSigmas)) continue;
+    u_weight = std::hypot(u_weight, 0.5 * std::abs(weightOf(other.k) - weight));
+    u_log_sigma = std::hypot(u_log_sigma, 0.5 * std::abs(std::log(other.sigma_px) - t));
+  }
   if (!(u_log_sigma < 0.5) || !(u_weight < 0.5 * weight) || !(weight < 0.9))
     fail(
         "{}: the scatter's halo does not decide the scatter: weight {:.4f} +- {:.4f}, sigma "
@@ -393,6 +493,7 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
 
   out.scatter.weight = weight;
   out.scatter.sigma_mm = sigma_mm;
+  out.scatter.border = border;
   out.scatter.weight_uncertainty = u_weight;
   out.scatter.sigma_uncertainty_mm = sigma_mm * u_log_sigma;
   out.correlation = correlation;
@@ -400,7 +501,7 @@ void searchWidth(const FitAt& fitAt, const Image& n, const std::vector<int>& ope
   out.open_level = 1.0 / (best.k.a + best.k.b);
   out.rms = best.rms;
   out.primary =
-      solvePrimary(normalized, columnAttenuation(normalized), best.k, sigma_mm / pitch_mm);
+      solvePrimary(normalized, columnAttenuation(normalized), best.k, sigma_mm / pitch_mm, border);
   // A scatter removed that was not there leaves the darkest paths below
   // zero: the open beam's halo was something else.
   int64_t negative = 0;
@@ -421,8 +522,11 @@ void fitOpenBeam(const Image& n, const std::vector<int>& open, const Image& norm
                  HaloFit& out) {
   checkOpenBeam(n, open, name, options, out);
   const std::vector<double> attenuation = columnAttenuation(n);
-  searchWidth([&](double sigma) { return fitAtWidth(n, attenuation, open, sigma); }, n, open,
-              normalized, pitch_mm, name, options, out);
+  searchWidth(
+      [&](double sigma, HaloBorder border) {
+        return fitAtWidth(n, attenuation, open, sigma, border);
+      },
+      n, open, normalized, pitch_mm, name, options, out);
 }
 
 }  // namespace
@@ -431,7 +535,8 @@ Image HaloFit::primaryWith(const Image& normalized, double pitch_mm, double weig
                            double sigma) const {
   const double c = -column_darkening / open_level;
   return solvePrimary(normalized, columnAttenuation(normalized),
-                      {(1.0 - weight) / open_level, weight / open_level, c}, sigma / pitch_mm);
+                      {(1.0 - weight) / open_level, weight / open_level, c}, sigma / pitch_mm,
+                      scatter.border);
 }
 
 HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::string& name,

@@ -13,7 +13,12 @@
 // (a, b, c) over the open-beam pixels (P = 1); P inside the part's shadow comes
 // from the fixed point P = (n - b g - c A) / a. Sigma is searched on a
 // logarithmic grid and refined; the weight is w = b / (a + b) and the column
-// darkening s = -c / (a + b).
+// darkening s = -c / (a + b). The width's uncertainty is the larger of the
+// curvature's and the profile's (the widths whose residual sum of squares
+// stays within one correlated variance of the least, and the weights
+// there); the panel's border is searched too (HaloOptions::borders). The
+// shape is taken as Gaussian: a detector characterised behind an opaque
+// edge (xgauge characterize) measures it instead.
 //
 // The open beam is everything outside the part's shadow: the bounding box of
 // the image's sharp edges (a part's outline steps by far more per pixel than a
@@ -44,6 +49,12 @@ struct HaloOptions {
   // something else (a part that fills the image) and is refused.
   double max_weight = 0.5;
   double max_column_darkening = 0.1;
+  // What the halo sees beyond the panel (image/scatter.h): each is tried,
+  // the one whose best width leaves the smaller open-beam residual is taken,
+  // and one the shot cannot rule out (its residual within 3 standard
+  // deviations of the profile) widens the weight's and width's uncertainty
+  // by half their difference.
+  std::vector<HaloBorder> borders = {HaloBorder::kMirror, HaloBorder::kOpen};
 };
 
 struct HaloFit {

@@ -54,7 +54,7 @@ def main():
             rows.append(f"| {name} | {halo['shape']} | {halo['weight']:.3f} | "
                         f"{halo['gaussian_equivalent_sigma_mm']:.1f} | refused: "
                         f"{run.stderr.strip().splitlines()[-1] if run.stderr.strip() else run.returncode} |"
-                        " | | | | | | {seconds:.0f} |")
+                        f" | | | | | | {seconds:.0f} |")
             continue
         d = json.loads((out / name / "detector.json").read_text())
         h = d["halo"]

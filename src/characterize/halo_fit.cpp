@@ -367,23 +367,33 @@ State minimizeWidths(const EdgeModel& model, const Shape& s, std::vector<double>
   return best;
 }
 
-// The best state of a shape: a grid over the widths, then a local search.
+// The best state of a shape: a grid over the widths, then a local search
+// from each of the three best grid points (with two widths the loss has
+// more than one valley: a core at the widest bound with a short tail fits
+// some shots' halo a little, and the grid's best point can lie there).
 State fitShape(const EdgeModel& model, const Shape& s, double low_mm, double high_mm) {
   constexpr int kGrid = 10;
-  State best;
-  best.linear.chi2 = std::numeric_limits<double>::infinity();
   auto at = [&](int i) { return low_mm * std::pow(high_mm / low_mm, (i + 0.5) / kGrid); };
+  std::vector<State> grid;
   for (int i = 0; i < kGrid; ++i) {
     for (int j = 0; j < (s.widths > 1 ? kGrid : 1); ++j) {
       std::vector<double> widths{at(i)};
       if (s.widths > 1) widths.push_back(at(j));
       // Two Gaussians in order: the second the wider.
       if (s.shape == HaloShape::kTwoGauss && widths[1] <= widths[0]) continue;
-      const LinearFit f = model.fit(s, widths);
-      if (f.chi2 < best.linear.chi2) best = {widths, f};
+      grid.push_back({widths, model.fit(s, widths)});
     }
   }
-  return minimizeWidths(model, s, best.widths, low_mm, high_mm, -1, nullptr, 200);
+  std::sort(grid.begin(), grid.end(),
+            [](const State& a, const State& b) { return a.linear.chi2 < b.linear.chi2; });
+  State best;
+  best.linear.chi2 = std::numeric_limits<double>::infinity();
+  const size_t starts = s.widths > 1 ? 3 : 1;
+  for (size_t k = 0; k < std::min(starts, grid.size()); ++k) {
+    State st = minimizeWidths(model, s, grid[k].widths, low_mm, high_mm, -1, nullptr, 200);
+    if (st.linear.chi2 < best.linear.chi2) best = std::move(st);
+  }
+  return best;
 }
 
 // The profile of one parameter: the chi2 minimised over the others with it

@@ -2,6 +2,7 @@
 // The CLI only parses arguments and calls the library; bad input surfaces
 // here as xgauge::Error, printed once, with a non-zero exit status.
 #include "calibrate_command.h"
+#include "characterize_command.h"
 #include "measure_command.h"
 #include "normalize_command.h"
 #include "render_command.h"
@@ -61,6 +62,8 @@ int main(int argc, char** argv) {
   xgauge::cli::addSimulateCommand(app, simulate);
   xgauge::cli::VerifyArguments verify;
   xgauge::cli::addVerifyCommand(app, verify);
+  xgauge::cli::CharacterizeArguments characterize;
+  xgauge::cli::addCharacterizeCommand(app, characterize);
 
   try {
     app.parse(argc, argv);
@@ -82,6 +85,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("material")) xgauge::cli::runMaterial(material);
     if (app.got_subcommand("study")) xgauge::cli::runStudyCommand(study);
     if (app.got_subcommand("verify")) xgauge::cli::runVerify(verify);
+    if (app.got_subcommand("characterize")) xgauge::cli::runCharacterize(characterize);
     if (app.got_subcommand("calibrate")) xgauge::cli::runCalibrate(app, calibrate_wedge, calibrate_part);
   } catch (const xgauge::Error& e) {
     std::fprintf(stderr, "xgauge: error: %s\n", e.what());

@@ -7,6 +7,7 @@
 #include "xgauge/image/radiograph.h"
 #include "xgauge/image/tiff.h"
 #include "xgauge/measure/job.h"
+#include "xgauge/xray/detector_file.h"
 #include "xgauge/xray/machine.h"
 
 #include <spdlog/spdlog.h>
@@ -206,6 +207,22 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
     root.at("margin_rows").fail("expected 0 to 1000");
   root.finish();
   job.machine = Machine::load(job.machine_file);
+  // A characterised detector's halo, for a job without a "scatter" of its own.
+  if (job.estimate_scatter) {
+    if (const auto detector = detectorFileOf(job.machine_file); detector && detector->halo) {
+      job.scatter = *detector->halo, job.estimate_scatter = false;
+      spdlog::info(
+          "{}: the characterised halo: {} kernel, {} border, weight {:.4f}, sigma {:.1f} mm",
+          detector->file.string(), toString(job.scatter.shape), toString(job.scatter.border),
+          job.scatter.weight, job.scatter.sigma_mm);
+    } else {
+      spdlog::warn(
+          "{}: the detector is not characterised (no detector.characterization in the "
+          "machine file, xgauge characterize): the halo is estimated from the wedge's shot "
+          "alone, with the thesis's Gaussian and a mirror border",
+          path.string());
+    }
+  }
   return job;
 }
 

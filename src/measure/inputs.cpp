@@ -1,5 +1,7 @@
 #include "xgauge/measure/inputs.h"
 
+#include "xgauge/xray/detector_file.h"
+
 #include "xgauge/core/config.h"
 #include "xgauge/image/pyramid.h"
 #include "xgauge/image/stats.h"
@@ -156,12 +158,22 @@ MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
     in.machine = Machine::fromConfig(machine);
     machine.finish();
   }
+  // A characterised detector's halo, for a job without a "scatter" of its
+  // own: measured on its own shot, it comes before a wedge calibration's.
+  const std::optional<DetectorFile> detector = detectorFileOf(in.job.machine_file);
+  const bool detector_halo = detector && detector->halo && !root.has("scatter");
+  if (detector_halo) {
+    in.job.scatter = *detector->halo;
+    spdlog::info("{}: the characterised halo: {} kernel, {} border, weight {:.4f}, sigma {:.1f} mm",
+                 detector->file.string(), toString(in.job.scatter.shape),
+                 toString(in.job.scatter.border), in.job.scatter.weight, in.job.scatter.sigma_mm);
+  }
   if (!in.job.material_file.empty()) {
     const ConfigNode material = loadInputConfig(in.job.material_file, in.sha256);
     in.material = ExponentialSum::fromConfig(material);
     // The detector's scatter its wedge calibration found, for a job without
     // a "scatter" of its own.
-    if (auto found = material.find("scatter"); found && !root.has("scatter")) {
+    if (auto found = material.find("scatter"); found && !root.has("scatter") && !detector_halo) {
       MaterialScatter scatter = materialScatterFromConfig(*found);
       in.job.scatter = scatter.model;
       in.scatter_curves = std::move(scatter.curves);

@@ -1,5 +1,7 @@
 #include "xgauge/xray/machine.h"
 
+#include "xgauge/xray/detector_file.h"
+
 #include <cmath>
 
 namespace xgauge {
@@ -39,6 +41,15 @@ Machine Machine::fromConfig(const ConfigNode& node) {
     m.cy_px = 0.5 * m.rows;
   }
   if (auto lag = detector.find("lag_fraction")) m.lag_fraction = lag->number(0.0, 0.5);
+  // A characterised detector: its lag where the machine states none (the
+  // halo is read by the jobs, xray/detector_file.h).
+  if (auto name = detector.find("characterization")) {
+    const DetectorFile file =
+        loadDetectorFile(std::filesystem::path(node.file()).parent_path() / name->string());
+    if (std::isnan(m.lag_fraction) && !std::isnan(file.lag_fraction))
+      m.lag_fraction = file.lag_fraction,
+      m.lag_fraction_uncertainty = file.lag_fraction_uncertainty;
+  }
   m.description = node.get<std::string>("description", "");
   if (auto u = node.find("uncertainty")) {
     if (auto d = u->find("source_detector_distance_mm"))

@@ -1,0 +1,27 @@
+// The detector file a machine may name (`detector.characterization`,
+// relative to the machine file): what `xgauge characterize` measured of the
+// panel (docs/formats.md, "Detector file"). Calibrations and measurements
+// take the halo and the lag fraction from it where their job states none.
+#pragma once
+
+#include "xgauge/image/scatter.h"
+
+#include <filesystem>
+#include <optional>
+
+namespace xgauge {
+
+struct DetectorFile {
+  std::filesystem::path file;
+  std::optional<ScatterModel> halo;  // "halo.scatter"
+  double lag_fraction = std::numeric_limits<double>::quiet_NaN();
+  double lag_fraction_uncertainty = std::numeric_limits<double>::quiet_NaN();
+  std::filesystem::path bad_pixels;  // empty when none
+};
+
+// Reads a detector file (Error naming the file and key).
+DetectorFile loadDetectorFile(const std::filesystem::path& path);
+// The detector file the machine file names, if it names one.
+std::optional<DetectorFile> detectorFileOf(const std::filesystem::path& machine_file);
+
+}  // namespace xgauge

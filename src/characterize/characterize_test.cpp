@@ -1,0 +1,154 @@
+// The characterisation's steps on small shots simulated here from closed
+// forms and the scatter model (image/scatter.h, itself checked against the
+// analytic halo in scatter_test).
+#include "xgauge/characterize/characterize.h"
+
+#include "xgauge/core/error.h"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <random>
+
+namespace xgauge {
+namespace {
+
+// 1 open, 0 behind a plate over columns [x0, x1), rows [y0, y1).
+Image plate(int width, int height, int x0, int x1, int y0, int y1) {
+  Image t(width, height, 1.0f);
+  for (int y = y0; y < y1; ++y)
+    for (int x = x0; x < x1; ++x) t(x, y) = 0.0f;
+  return t;
+}
+
+void addNoise(Image& image, double sigma, uint64_t seed) {
+  std::mt19937_64 rng(seed);
+  std::normal_distribution<double> noise(0.0, sigma);
+  for (float& v : image.pixels()) v += static_cast<float>(noise(rng));
+}
+
+// An edge shot: the plate over the left part, open beam around it, a flat
+// field's scale of 0.98 (the flats' lag), noise 0.004 per pixel.
+Image edgeShot(const ScatterModel& halo, double pitch_mm) {
+  Image shot = halo.apply(plate(200, 180, 20, 95, 15, 165), pitch_mm, 1.0f);
+  for (float& v : shot.pixels()) v *= 0.98f;
+  addNoise(shot, 0.004, 7);
+  return shot;
+}
+
+TEST(EdgeHalo, AGaussianHaloIsFoundWithItsBorderAndCoveringUncertainties) {
+  ScatterModel truth;
+  truth.weight = 0.12, truth.sigma_mm = 9.0, truth.border = HaloBorder::kOpen;
+  const EdgeHaloFit fit = fitEdgeHalo(edgeShot(truth, 0.5), 0.5, {});
+  EXPECT_EQ(fit.scatter.shape, HaloShape::kGaussian) << fit.choice;
+  EXPECT_EQ(fit.scatter.border, HaloBorder::kOpen) << fit.choice;
+  EXPECT_NEAR(fit.scatter.weight, truth.weight, 0.02 * truth.weight);
+  EXPECT_NEAR(fit.scatter.sigma_mm, truth.sigma_mm, 0.03 * truth.sigma_mm);
+  // The profile's half-widths: positive, and the errors within 3 of them.
+  EXPECT_GT(fit.scatter.weight_uncertainty, 0.0);
+  EXPECT_GT(fit.scatter.sigma_uncertainty_mm, 0.0);
+  EXPECT_LT(std::abs(fit.scatter.weight - truth.weight), 3.0 * fit.scatter.weight_uncertainty);
+  EXPECT_LT(std::abs(fit.scatter.sigma_mm - truth.sigma_mm),
+            3.0 * fit.scatter.sigma_uncertainty_mm);
+  EXPECT_EQ(fit.candidates.size(), 6u);
+  EXPECT_LT(fit.noise_scale, 1.2);  // the noise alone: the model is right
+}
+
+TEST(EdgeHalo, TwoGaussiansAreToldFromOne) {
+  ScatterModel truth;
+  truth.weight = 0.15, truth.shape = HaloShape::kTwoGauss, truth.border = HaloBorder::kOpen;
+  truth.sigma_mm = 3.0, truth.sigma2_mm = 15.0, truth.fraction2 = 0.4;
+  EdgeHaloOptions options;
+  options.profiles = false;
+  const EdgeHaloFit fit = fitEdgeHalo(edgeShot(truth, 0.5), 0.5, options);
+  EXPECT_EQ(fit.scatter.shape, HaloShape::kTwoGauss) << fit.choice;
+  EXPECT_NEAR(fit.scatter.weight, truth.weight, 0.05 * truth.weight);
+  EXPECT_NEAR(fit.equivalent_sigma_mm, truth.equivalentSigmaMm(), 0.05 * truth.equivalentSigmaMm());
+}
+
+TEST(EdgeHalo, AHaloWiderThanHalfThePanelIsRefusedWithItsFigures) {
+  ScatterModel truth;
+  truth.weight = 0.2, truth.sigma_mm = 80.0, truth.border = HaloBorder::kOpen;  // panel 100 x 90 mm
+  EdgeHaloOptions options;
+  options.profiles = false;
+  try {
+    fitEdgeHalo(edgeShot(truth, 0.5), 0.5, options);
+    FAIL() << "no error";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("characterize, edge"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("shorter side"), std::string::npos) << e.what();
+  }
+  // No plate at all: refused too.
+  EXPECT_THROW(fitEdgeHalo(Image(100, 100, 1.0f), 0.5, options), Error);
+}
+
+TEST(Lag, TheFractionOfTheBrightFrameInTheNext) {
+  Image dark(128, 128, 1000.0f), bright(128, 128), after(128, 128);
+  addNoise(dark, 1.0, 1);
+  std::mt19937_64 rng(3);
+  std::normal_distribution<double> noise(0.0, 8.0);
+  for (size_t i = 0; i < dark.size(); ++i) {
+    const double signal = 30000.0 * (1.0 + 0.1 * std::sin(0.01 * static_cast<double>(i)));
+    bright.pixels()[i] =
+        static_cast<float>(static_cast<double>(dark.pixels()[i]) + signal + noise(rng));
+    after.pixels()[i] =
+        static_cast<float>(static_cast<double>(dark.pixels()[i]) + 0.004 * signal + noise(rng));
+  }
+  ImageT<uint8_t> bad(128, 128, 0);
+  const Estimate g = estimateLag(bright, after, dark, bad);
+  EXPECT_NEAR(g.value, 0.004, 3.0 * g.uncertainty);
+  EXPECT_GT(g.uncertainty, 0.0);
+  EXPECT_LT(g.uncertainty, 2e-5);
+  EXPECT_THROW(estimateLag(dark, after, dark, bad), Error);
+}
+
+TEST(Crosstalk, TheColumnStepBelowACoveredQuadrant) {
+  // A halo smooth across the quadrant's edge, then X = R + c colmean(R),
+  // divided by the flat's (1 + c).
+  const double c = 0.005;
+  ScatterModel halo;
+  halo.weight = 0.1, halo.sigma_mm = 20.0, halo.border = HaloBorder::kOpen;
+  Image r = halo.apply(plate(400, 400, 20, 200, 20, 200), 0.2, 1.0f);
+  Image x = r;
+  for (int u = 0; u < 400; ++u) {
+    double mean = 0.0;
+    for (int v = 0; v < 400; ++v) mean += static_cast<double>(r(u, v));
+    mean /= 400.0;
+    for (int v = 0; v < 400; ++v)
+      x(u, v) = static_cast<float>((static_cast<double>(r(u, v)) + c * mean) / (1.0 + c));
+  }
+  addNoise(x, 0.003, 5);
+  const Estimate e = estimateCrosstalk(x);
+  EXPECT_NEAR(e.value, c, 3.0 * e.uncertainty);
+  EXPECT_LT(e.uncertainty, 0.1 * c);
+  EXPECT_THROW(estimateCrosstalk(Image(100, 100, 1.0f)), Error);
+}
+
+TEST(BadPixels, DeadHotAndNoisyFromTheSeries) {
+  std::vector<Image> darks;
+  for (int k = 0; k < 8; ++k) {
+    Image d(96, 80, 4000.0f);
+    addNoise(d, 8.0, 100 + static_cast<uint64_t>(k));
+    d(10, 12) += 9000.0f;                                    // hot
+    d(50, 40) += static_cast<float>((k % 2 ? 1 : -1) * 80);  // noisy
+    darks.push_back(d);
+  }
+  Image dark(96, 80, 0.0f);
+  for (const Image& d : darks)
+    for (size_t i = 0; i < dark.size(); ++i) dark.pixels()[i] += d.pixels()[i] / 8.0f;
+  Image flat = dark;
+  for (float& v : flat.pixels()) v += 30000.0f;
+  flat(70, 20) = dark(70, 20) + 100.0f;  // dead
+  const BadPixelMap map = findDetectorBadPixels(darks, dark, flat);
+  EXPECT_EQ(map.dead, 1);
+  EXPECT_EQ(map.hot, 1);
+  EXPECT_EQ(map.noisy, 1);
+  EXPECT_EQ(map.kinds(70, 20), kDeadPixel);
+  EXPECT_EQ(map.kinds(10, 12), kHotPixel);
+  EXPECT_EQ(map.kinds(50, 40), kNoisyPixel);
+  const nlohmann::json j = badPixelsJson(map);
+  EXPECT_EQ(j["dead"][0], nlohmann::json({70, 20}));
+}
+
+}  // namespace
+}  // namespace xgauge

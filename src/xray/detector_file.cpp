@@ -1,0 +1,32 @@
+#include "xgauge/xray/detector_file.h"
+
+#include "xgauge/core/config.h"
+
+namespace xgauge {
+
+DetectorFile loadDetectorFile(const std::filesystem::path& path) {
+  const ConfigNode root = ConfigNode::loadFile(path);
+  DetectorFile out;
+  out.file = path;
+  if (auto halo = root.find("halo")) out.halo = ScatterModel::fromConfig(halo->at("scatter"));
+  if (auto lag = root.find("lag_fraction")) {
+    out.lag_fraction = lag->at("value").number(0.0, 0.5);
+    out.lag_fraction_uncertainty = lag->at("uncertainty").number(0.0, 0.5);
+  }
+  if (auto bad = root.find("bad_pixels"))
+    out.bad_pixels = path.parent_path() / bad->get<std::string>("file");
+  // The rest (candidates, inputs, crosstalk) is the record, not read.
+  root.json();
+  return out;
+}
+
+std::optional<DetectorFile> detectorFileOf(const std::filesystem::path& machine_file) {
+  const ConfigNode root = ConfigNode::loadFile(machine_file);
+  const auto detector = root.find("detector");
+  if (!detector) return std::nullopt;
+  const auto name = detector->find("characterization");
+  if (!name) return std::nullopt;
+  return loadDetectorFile(machine_file.parent_path() / name->string());
+}
+
+}  // namespace xgauge

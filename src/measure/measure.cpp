@@ -3,6 +3,7 @@
 #include "budget.h"
 #include "checks.h"
 #include "least_squares.h"
+#include "pose_candidates.h"
 #include "stages.h"
 #include "xgauge/loss/loss.h"
 #include "xgauge/measure/model.h"
@@ -11,7 +12,6 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
-#include <tbb/parallel_for.h>
 
 #include <array>
 #include <chrono>
@@ -102,10 +102,19 @@ void fitAxis(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     runner.run(poseStage(spec.name + ": axis, finer", finer, axis, r, model));
 }
 
+// A free or rotated radiograph's pose refined on the finer levels.
+void refinePoseFiner(const ForwardModel& model, Runner& runner, const PoseSchedule& schedule,
+                     int r) {
+  for (const PoseStage& finer : schedule.finer)
+    runner.run(
+        poseStage(model.spec(r).name + ": pose, finer", finer, model.poseIndices(r), r, model));
+}
+
 // A free or rotated radiograph: a global search of (r, x, y) (r the
 // schedule's search rotation), at one depth or several, then 6-DOF.
-void fitPose(ForwardModel& model, std::vector<double>& theta, Runner& runner,
-             const PoseSchedule& schedule, int r) {
+// Returns its pose candidates, the best (theta's) first.
+std::vector<PoseCandidate> fitPose(ForwardModel& model, std::vector<double>& theta, Runner& runner,
+                                   const PoseSchedule& schedule, int r) {
   const RadiographSpec& spec = model.spec(r);
   const ParameterLayout& p = model.parameters();
   const std::vector<int> pose = model.poseIndices(r);
@@ -163,35 +172,32 @@ void fitPose(ForwardModel& model, std::vector<double>& theta, Runner& runner,
     runner.run(globalStage(spec.name + ": pose search"));
     runner.run(poseStage(spec.name + ": pose", schedule.local, pose, r, model));
   }
+  std::vector<PoseCandidate> candidates;
   if (!record.empty()) {
-    // Refine the best few distinct samples, keep the best.
-    double best = kInf;
-    std::vector<double> best_theta = theta;
-    const auto starts =
+    // Refine the best few distinct samples: the best is the pose, the others
+    // stay candidates for the joint fit (tryCandidates).
+    std::vector<std::vector<double>> refined =
         distinctBest(record, searched, model, static_cast<size_t>(std::max(1, schedule.multistart)),
                      schedule.separation);
-    // Side by side, each on a model of its own (its scratch is not shared):
-    // a pose search's renders are too small to keep two cores busy (on a
-    // 4096^2 Prism A pair its stages took as long on one core as on two).
-    // Each start's refinement is the same whichever thread runs it, and
-    // the first best in the starts' order is kept.
-    std::vector<std::vector<double>> refined = starts;
-    std::vector<MeasurementResult> reports(starts.size());
-    std::vector<double> losses(starts.size(), kInf);
-    tbb::parallel_for(size_t{0}, starts.size(), [&](size_t k) {
-      ForwardModel own = model;
-      Runner side(own, refined[k], reports[k], runner.seed(), /*progress=*/false);
-      losses[k] = side.run(poseStage(fmt::format("{}: pose from start {}", spec.name, k + 1),
-                                     schedule.local, pose, r, own));
-    });
-    for (size_t k = 0; k < starts.size(); ++k) {
-      for (const StageReport& stage : reports[k].stages) runner.report(stage);
-      if (losses[k] < best) best = losses[k], best_theta = refined[k];
-    }
-    theta = best_theta;
+    std::vector<std::string> names;
+    for (size_t k = 0; k < refined.size(); ++k)
+      names.push_back(fmt::format("{}: pose from start {}", spec.name, k + 1));
+    const std::vector<double> losses =
+        runner.refineEach(refined, poseStage("", schedule.local, pose, r, model), names);
+    for (size_t k = 0; k < refined.size(); ++k)
+      candidates.push_back(
+          {poseValues(model, refined[k], r), losses[k], fmt::format("search start {}", k + 1)});
+    // Best first; of equal losses the earlier start's.
+    std::stable_sort(
+        candidates.begin(), candidates.end(),
+        [](const PoseCandidate& a, const PoseCandidate& b) { return a.loss < b.loss; });
+    if (candidates.front().loss < kInf) setPose(model, theta, r, candidates.front().pose);
+  } else {
+    candidates.push_back({{}, 0.0, "search"});
   }
-  for (const PoseStage& finer : schedule.finer)
-    runner.run(poseStage(spec.name + ": pose, finer", finer, pose, r, model));
+  refinePoseFiner(model, runner, schedule, r);
+  candidates.front().pose = poseValues(model, theta, r);
+  return distinctCandidates(model, r, candidates, schedule.candidate_separation_deg);
 }
 
 // Every free parameter of every radiograph together, coarse to fine.
@@ -372,37 +378,30 @@ void decideConformity(const ForwardModel& model, MeasurementResult& result) {
         fmt::join(withheld, ", ")));
 }
 
-// One run of the pipeline from theta: the poses, the joint fit, the budget
-// and the self-checks; `seed` for its searches.
-MeasurementResult runPipeline(ForwardModel& model, std::vector<double> theta,
-                              const MeasureOptions& options, const Schedule& schedule,
-                              uint64_t seed) {
-  const auto start = std::chrono::steady_clock::now();
-  const MeasurementJob& job = model.job();
-  XG_CHECK(theta.size() == static_cast<size_t>(model.size()), "theta has the wrong size");
-  model.setEdgeSamples(0);  // until the least-squares stage
-  if (const auto why = model.infeasibility(theta))
-    spdlog::warn(
-        "the starting parameters cannot be simulated ({}); the searches start from "
-        "infeasible points",
-        *why);
-  MeasurementResult result;
-  Runner runner(model, theta, result, seed);
+// Whether attempt a is a better fit than b: one that passes the acceptance
+// rule first, then the smaller worst misfit, then the smaller share of
+// residual regions.
+bool betterAttempt(const MeasurementResult& a, const MeasurementResult& b) {
+  if (a.check.failures.empty() != b.check.failures.empty()) return a.check.failures.empty();
+  const double ma = a.check.worstMisfitRatio(), mb = b.check.worstMisfitRatio();
+  if (ma != mb) return ma < mb;
+  return a.check.region_share < b.check.region_share;
+}
 
-  // 1. Each radiograph's pose alone, the part at its starting dimensions.
-  for (int r = 0; options.search_poses && r < model.radiographCount(); ++r) {
-    switch (model.spec(r).pattern) {
-      case Acquisition::kTranslated:
-        fitAxis(model, theta, runner, schedule.pose, r);
-        break;
-      case Acquisition::kFree:
-      case Acquisition::kRotated:
-        fitPose(model, theta, runner, schedule.pose, r);
-        break;
-      case Acquisition::kKnown:
-        break;
-    }
-  }
+// Whether a fit needs no other pose candidate: the acceptance rule passes
+// it and every radiograph fits within `misfit_ratio` of its noise (schedule.h,
+// PoseSchedule::settled_misfit_ratio).
+bool settled(const MeasurementResult& fit, double misfit_ratio) {
+  return fit.check.failures.empty() && fit.check.worstMisfitRatio() <= misfit_ratio;
+}
+
+// The joint fit from theta (the poses found), the final figures, the budget
+// and the self-checks; `result` holds the stages run before.
+MeasurementResult fitFrom(ForwardModel& model, std::vector<double> theta,
+                          const MeasureOptions& options, const Schedule& schedule, uint64_t seed,
+                          MeasurementResult result) {
+  const MeasurementJob& job = model.job();
+  Runner runner(model, theta, result, seed);
   // 2-3. Everything together.
   fitJointly(model, theta, runner, schedule, options);
 
@@ -438,18 +437,122 @@ MeasurementResult runPipeline(ForwardModel& model, std::vector<double> theta,
         {spec.name, std::string(acquisitionName(spec.pattern)), pose, loss, magnification});
     result.total_loss += loss;
   }
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return result;
 }
 
-// Whether attempt a is a better fit than b: one that passes the acceptance
-// rule first, then the smaller worst misfit, then the smaller share of
-// residual regions.
-bool betterAttempt(const MeasurementResult& a, const MeasurementResult& b) {
-  if (a.check.failures.empty() != b.check.failures.empty()) return a.check.failures.empty();
-  const double ma = a.check.worstMisfitRatio(), mb = b.check.worstMisfitRatio();
-  if (ma != mb) return ma < mb;
-  return a.check.region_share < b.check.region_share;
+// A fit the acceptance rule refuses, or one that leaves more than the
+// noise (settled), from the radiographs' other pose candidates (schedule.h,
+// PoseSchedule::candidates; docs/method.md, "Pose candidates"): the worst
+// fitting radiograph's first, each radiograph's
+// search minima in the order of their loss together with its mirrored
+// poses (refined only now that they are needed), the others' poses as the
+// search left them. Stops at the first settled fit; keeps the better
+// (betterAttempt: one the rule passes, then the smallest misfit). `searched`: theta and the stages
+// after the pose searches.
+void tryCandidates(ForwardModel& model, const std::vector<double>& searched_theta,
+                   const MeasurementResult& searched, const MeasureOptions& options,
+                   const Schedule& schedule, uint64_t seed,
+                   std::vector<std::vector<PoseCandidate>> candidates, MeasurementResult& best) {
+  const PoseSchedule& ps = schedule.pose;
+  std::vector<int> order;
+  std::vector<double> misfit(candidates.size(), 0.0);
+  for (int r = 0; r < static_cast<int>(candidates.size()); ++r) {
+    if (candidates[static_cast<size_t>(r)].empty()) continue;
+    order.push_back(r);
+    if (static_cast<size_t>(r) < best.check.radiographs.size())
+      misfit[static_cast<size_t>(r)] = best.check.radiographs[static_cast<size_t>(r)].misfit_ratio;
+  }
+  std::stable_sort(order.begin(), order.end(), [&](int a, int b) {
+    return misfit[static_cast<size_t>(a)] > misfit[static_cast<size_t>(b)];
+  });
+  int tried = 1, evaluations = best.evaluations;
+  // The sampling every joint fit ends with (fitJointly), in which the kept
+  // fit's figures were taken, for the caller's full-size simulation (the
+  // pose stages below sample without the edges).
+  const LeastSquaresStage ls = leastSquaresStage(model, schedule);
+  const int edges = ls.enabled ? ls.edge_samples : 0;
+  for (const int r : order) {
+    if (tried >= ps.candidates || settled(best, ps.settled_misfit_ratio)) break;
+    const RadiographSpec& spec = model.spec(r);
+    std::vector<PoseCandidate>& list = candidates[static_cast<size_t>(r)];
+    std::vector<double> theta = searched_theta;
+    MeasurementResult mirrored = searched;
+    model.setEdgeSamples(0);  // the pose stages' sampling (the joint fit refined the edges)
+    Runner runner(model, theta, mirrored, seed);
+    for (PoseCandidate& m :
+         mirroredCandidates(model, searched_theta, r,
+                            poseStage("", ps.local, model.poseIndices(r), r, model), runner))
+      list.push_back(std::move(m));
+    evaluations += mirrored.evaluations - searched.evaluations;
+    std::stable_sort(
+        list.begin() + 1, list.end(),
+        [](const PoseCandidate& a, const PoseCandidate& b) { return a.loss < b.loss; });
+    list = distinctCandidates(model, r, list, ps.candidate_separation_deg);
+    for (size_t k = 1; k < list.size() && tried < ps.candidates; ++k) {
+      if (!(list[k].loss < kInf)) continue;
+      spdlog::warn(
+          "{}; trying {}'s pose candidate {} ({}, search loss {:.4g} against {:.4g})",
+          best.check.failures.empty()
+              ? fmt::format("the fit leaves {:.2f} times the noise", best.check.worstMisfitRatio())
+              : fmt::format("the fit is not a measurement ({})", best.check.failures.front()),
+          spec.name, k + 1, list[k].origin, list[k].loss, list.front().loss);
+      theta = searched_theta;
+      setPose(model, theta, r, list[k].pose);
+      MeasurementResult stages = mirrored;
+      model.setEdgeSamples(0);
+      Runner finer(model, theta, stages, seed);
+      refinePoseFiner(model, finer, ps, r);
+      MeasurementResult next = fitFrom(model, theta, options, schedule, seed, stages);
+      evaluations += next.evaluations - mirrored.evaluations;
+      ++tried;
+      next.candidate_taken = tried;
+      next.candidate_origin = fmt::format("{}: {}", spec.name, list[k].origin);
+      if (betterAttempt(next, best)) best = std::move(next);
+      if (settled(best, ps.settled_misfit_ratio)) break;
+    }
+  }
+  model.setEdgeSamples(edges);
+  best.candidates_tried = tried;
+  best.evaluations = evaluations;
+}
+
+// One run of the pipeline from theta: the poses, the joint fit from their
+// candidates until one passes the acceptance rule (when `judge`), the
+// budget and the self-checks; `seed` for its searches.
+MeasurementResult runPipeline(ForwardModel& model, std::vector<double> theta,
+                              const MeasureOptions& options, const Schedule& schedule,
+                              uint64_t seed, bool judge) {
+  const auto start = std::chrono::steady_clock::now();
+  XG_CHECK(theta.size() == static_cast<size_t>(model.size()), "theta has the wrong size");
+  model.setEdgeSamples(0);  // until the least-squares stage
+  if (const auto why = model.infeasibility(theta))
+    spdlog::warn(
+        "the starting parameters cannot be simulated ({}); the searches start from "
+        "infeasible points",
+        *why);
+  MeasurementResult searched;
+  Runner runner(model, theta, searched, seed);
+
+  // 1. Each radiograph's pose alone, the part at its starting dimensions.
+  std::vector<std::vector<PoseCandidate>> candidates(static_cast<size_t>(model.radiographCount()));
+  for (int r = 0; options.search_poses && r < model.radiographCount(); ++r) {
+    switch (model.spec(r).pattern) {
+      case Acquisition::kTranslated:
+        fitAxis(model, theta, runner, schedule.pose, r);
+        break;
+      case Acquisition::kFree:
+      case Acquisition::kRotated:
+        candidates[static_cast<size_t>(r)] = fitPose(model, theta, runner, schedule.pose, r);
+        break;
+      case Acquisition::kKnown:
+        break;
+    }
+  }
+  MeasurementResult result = fitFrom(model, theta, options, schedule, seed, searched);
+  if (judge && !settled(result, schedule.pose.settled_misfit_ratio))
+    tryCandidates(model, theta, searched, options, schedule, seed, std::move(candidates), result);
+  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  return result;
 }
 
 // The seed of retry k: well apart from the job's (SplitMix64's increment).
@@ -476,7 +579,7 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
   const Schedule& schedule = options.schedule ? *options.schedule : scheduleFor(job.schedule);
   const AcceptanceRule& rule = job.acceptance;
   const bool judge = options.assess && options.judge;
-  MeasurementResult best = runPipeline(model, theta, options, schedule, job.seed);
+  MeasurementResult best = runPipeline(model, theta, options, schedule, job.seed, judge);
   int evaluations = best.evaluations;
   // A fit the rule refuses: again from other starts, the pose searches with
   // another seed and twice their starts.
@@ -487,7 +590,8 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
         "attempt {} is not a measurement ({} failure(s), the first: {}); trying again "
         "from other starts",
         k, best.check.failures.size(), best.check.failures.front());
-    MeasurementResult next = runPipeline(model, theta, options, wider, retrySeed(job.seed, k));
+    MeasurementResult next =
+        runPipeline(model, theta, options, wider, retrySeed(job.seed, k), judge);
     evaluations += next.evaluations;
     next.attempts = k + 1;
     if (betterAttempt(next, best)) best = std::move(next);

@@ -18,6 +18,7 @@ Schedule makeBobyqa() {
   p.window_of_part_size = 0.25;
   p.multistart = 4;
   p.separation = 0.05;
+  p.candidates = 4;
   p.local = {Method::kBobyqa, 256, 150, 0, kPoseSteps};
   p.finer = {{Method::kBobyqa, 512, 200, 0, {0.5, 1.0, 0.5, 0.2, 0.2, 2.0}}};
   p.axis_from_shadow_shift = true;

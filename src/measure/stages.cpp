@@ -3,6 +3,7 @@
 #include "xgauge/core/progress.h"
 
 #include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <chrono>
@@ -79,6 +80,23 @@ double Runner::run(const StagePlan& plan) {
   result_.stages.push_back(report);
   result_.evaluations += report.evaluations;
   return report.loss_after;
+}
+
+std::vector<double> Runner::refineEach(std::vector<std::vector<double>>& thetas, StagePlan plan,
+                                       const std::vector<std::string>& names) {
+  XG_CHECK(names.size() == thetas.size(), "a name for each start");
+  std::vector<MeasurementResult> reports(thetas.size());
+  std::vector<double> losses(thetas.size(), std::numeric_limits<double>::infinity());
+  tbb::parallel_for(size_t{0}, thetas.size(), [&](size_t k) {
+    ForwardModel own = model_;
+    Runner side(own, thetas[k], reports[k], seed_, /*progress=*/false);
+    StagePlan named = plan;
+    named.name = names[k];
+    losses[k] = side.run(named);
+  });
+  for (const MeasurementResult& one : reports)
+    for (const StageReport& stage : one.stages) report(stage);
+  return losses;
 }
 
 std::vector<std::vector<double>> distinctBest(

@@ -45,6 +45,13 @@ class Runner {
   void recordInto(std::vector<std::pair<double, std::vector<double>>>* record) { record_ = record; }
   // Runs the stage; returns the loss after it (+inf when no feasible point).
   double run(const StagePlan& plan);
+  // Runs `plan`, named names[k], from each of `thetas` (refined in place)
+  // side by side, each on a model of its own (its scratch is not shared): a
+  // pose stage's renders are too small to keep two cores busy. Each one's
+  // result is the same whichever thread runs it; their reports follow in
+  // order. Returns each one's loss after it.
+  std::vector<double> refineEach(std::vector<std::vector<double>>& thetas, StagePlan plan,
+                                 const std::vector<std::string>& names);
 
  private:
   ForwardModel& model_;

@@ -199,6 +199,10 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
           {"status", std::string(measurementStatusName(result.status))},
           {"failures", result.check.failures},
           {"attempts", result.attempts},
+          {"pose_candidates",
+           {{"tried", result.candidates_tried},
+            {"taken", result.candidate_taken},
+            {"taken_from", result.candidate_origin}}},
           {"verification", job.verification_file.empty()
                                ? nlohmann::json(nullptr)
                                : nlohmann::json(job.verification_file.string())},

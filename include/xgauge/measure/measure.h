@@ -78,6 +78,12 @@ std::string_view measurementStatusName(MeasurementStatus status);
 struct MeasurementResult {
   MeasurementStatus status = MeasurementStatus::kMeasured;
   int attempts = 1;  // the pipeline's runs: 1 + the retries the acceptance rule took
+  // Of the kept attempt: the pose candidates its joint fit started from
+  // until one passed the acceptance rule (docs/method.md, "Pose
+  // candidates"), and which of them it kept (1: the search's best).
+  int candidates_tried = 1;
+  int candidate_taken = 1;
+  std::string candidate_origin = "the search's best";  // "r00: search start 2", ...
   std::vector<MeasuredDimension> dimensions;
   std::vector<MeasuredRadiograph> radiographs;
   std::vector<StageReport> stages;

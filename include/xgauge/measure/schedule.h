@@ -17,12 +17,13 @@
 //            centroid and the sampling (150 points) searches a window of a
 //            quarter of the part's size around it; the best 4 distinct samples
 //            are refined by BOBYQA (multi-start) and the best is refined on
-//            a level about 512 px wide; a translated radiograph's axis comes
-//            from the shift of its shadow's centroid. The joint fit runs by
-//            Gauss-Newton / Levenberg-Marquardt (Ceres) with the Jacobian of
-//            the render with derivatives (xray/derivatives.h) on levels about
-//            512 and 1024 px wide with 2 x 2 area samples; then least squares
-//            on the residuals (reweighted for the L1 loss) on the level about
+//            a level about 512 px wide (the others, and the poses mirrored
+//            as a silhouette allows, are pose candidates the joint fit
+//            starts from when the acceptance rule refuses its fit); a translated radiograph's axis
+//            comes from the shift of its shadow's centroid. The joint fit runs by Gauss-Newton /
+//            Levenberg-Marquardt (Ceres) with the Jacobian of the render with derivatives
+//            (xray/derivatives.h) on levels about 512 and 1024 px wide with 2 x 2 area samples;
+//            then least squares on the residuals (reweighted for the L1 loss) on the level about
 //            1024 px wide (finer where a shadow would be under 128 px across
 //            there), of renders whose pixels on edges and silhouettes
 //            are sampled 8 x 8 (there and in the uncertainty budget), its
@@ -91,6 +92,21 @@ struct PoseSchedule {
   // point once.
   int multistart = 0;
   double separation = 0.05;
+  // Pose candidates (docs/method.md, "Pose candidates"): a joint fit that
+  // has not settled (below) is started again from the next candidate pose
+  // of a free or rotated radiograph (the multistart's other distinct
+  // minima and the poses mirrored as a silhouette allows, in the order of
+  // their search loss), the worst fitting radiograph's first, until one
+  // settles or `candidates` joint fits (the first included) have run; the
+  // better fit is kept. 1: the search's best alone. Minima whose rotations
+  // lie within `candidate_separation_deg` of each other are one.
+  int candidates = 1;
+  double candidate_separation_deg = 2.0;
+  // Settled: the acceptance rule passes the fit and no radiograph's misfit
+  // ratio (rms residual over noise) exceeds this; of fits the rule passes
+  // the smallest worst ratio is kept: on a stepped shaft a pose mirrored by its symmetry
+  // passed with 1.98 where the true pose left 1.0 to 1.3.
+  double settled_misfit_ratio = 1.5;
   PoseStage local;                    // 6-DOF
   std::vector<PoseStage> finer = {};  // 6-DOF refinements, in order
 

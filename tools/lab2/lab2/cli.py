@@ -7,6 +7,7 @@ import sys
 import time
 
 from . import grid
+from .physical import KINDS
 
 
 def main(argv=None):
@@ -19,10 +20,21 @@ def main(argv=None):
     s.add_argument("--imperfections", action="store_true", help="chamfers and a taper on the prism jaw, drawn per run")
     s.add_argument("--seed", type=int, help="override the machine's seed")
     s.add_argument("--frames", type=int, help="frames in the dark and flat series (default: the machine's, 8)")
+    _parts_args(s)
     s = sub.add_parser("grid", help="generate every machine of the grid (or those named)")
     s.add_argument("-o", "--output", required=True)
     s.add_argument("--machines", help="comma-separated ids (default: all)")
     s.add_argument("--imperfections", action="store_true")
+    _parts_args(s)
+    s = sub.add_parser("suite", help="the measured-parts grid for xgauge's coverage and verification checks: a subset "
+                                     "of machines, every measured part with its master sets, stated inputs drawn per run")
+    s.add_argument("-o", "--output", required=True)
+    s.add_argument("--machines", default=",".join(grid.SUITE), help=f"comma-separated ids (default: {','.join(grid.SUITE)})")
+    s.add_argument("--parts", default="prism,wedge,bracket,shaft")
+    s.add_argument("--masters", type=int, default=3, help="master shot sets per part (default 3)")
+    s.add_argument("--runs", type=int, default=1, help="runs per machine, each with its own seed (machine seed + "
+                                                      "7919 k) and so its own draws (default 1)")
+    s.add_argument("--frames", type=int, default=4, help="frames in the dark and flat series (default 4)")
     s = sub.add_parser("render", help="render one part (path or transmission) for cross-checks")
     s.add_argument("part")
     s.add_argument("-m", "--machine", required=True, help="an xgauge machine file")
@@ -43,8 +55,13 @@ def main(argv=None):
         return _render(a)
     from .session import Machine, Session
     ids = [a.id] if a.cmd == "machine" else (a.machines.split(",") if a.machines else [m["id"] for m in grid.MACHINES])
+    runs = getattr(a, "runs", 1)
+    parts = [p for p in (a.parts or "").split(",") if p]
+    for p in parts:
+        if p not in KINDS:
+            ap.error(f"unknown part {p!r} (known: {', '.join(KINDS)})")
     summary = {}
-    for mid in ids:
+    for mid, k in ((m, k) for m in ids for k in range(runs)):
         if os.path.isfile(mid):
             with open(mid) as f:
                 cfg = json.load(f)
@@ -52,15 +69,23 @@ def main(argv=None):
             cfg = grid.machine(mid)
         if getattr(a, "seed", None) is not None:
             cfg["seed"] = a.seed
+        cfg["seed"] = int(cfg["seed"]) + 7919 * k
         if getattr(a, "frames", None):
             cfg["frames"] = {"darks": a.frames, "flats": a.frames}
         t = time.time()
-        out = os.path.join(a.output, cfg["id"])
-        truth = Session(Machine(cfg), out, imperfections=a.imperfections).run()
+        out = os.path.join(a.output, f"run{k:02d}", cfg["id"]) if runs > 1 else os.path.join(a.output, cfg["id"])
+        truth = Session(Machine(cfg), out, imperfections=getattr(a, "imperfections", True), parts=parts,
+                        masters=a.masters).run()
         dt = time.time() - t
         summary[cfg["id"]] = {k: round(v, 1) for k, v in truth["timings_s"].items()}
         print(f"{cfg['id']}: {out} in {dt:.1f} s ({summary[cfg['id']]})", flush=True)
     return 0
+
+
+def _parts_args(s):
+    s.add_argument("--parts", default="", help="comma-separated measured parts (prism, wedge, bracket, shaft) with "
+                                               "their master sets, under measured/")
+    s.add_argument("--masters", type=int, default=3, help="master shot sets per part (default 3)")
 
 
 def _render(a):

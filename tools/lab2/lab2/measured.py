@@ -142,13 +142,12 @@ class PartRun:
                 "note": physical.__doc__.strip()}
 
     # ------------------------------------------------------------------
-    def shoot_set(self, folder, label, dims, imp, z, base, rng, depth):
-        from .session import pose_json, write_json
-        s, m, g = self.s, self.m, self.m.geom
-        doc, root = physical.physical_part(self.kind, dims, imp)
-        os.makedirs(folder, exist_ok=True)
-        if doc is not None:
-            write_json(os.path.join(folder, "physical_part.json"), doc)
+    def placement(self, dims, z, base, rng):
+        """Where the lab puts the part: t00 at a drawn rotation near `base`,
+        t01 = t00 moved by STEP_MM along a nearly horizontal axis, r00 turned
+        from t00 by a drawn angle (0 to 90 deg) about a drawn stage axis through
+        the part's (true) bounding-box centre at t00's position."""
+        m, g = self.m, self.m.geom
         rot = [float(b + rng.uniform(-3, 3)) for b in base]
         R0 = rotation_matrix(*rot)
         bb = Scene(self.pm.build(dims)).bbox_corners_world()
@@ -163,6 +162,20 @@ class PartRun:
         R2 = axis_angle_matrix(sax, angle) @ R0
         poses = [("t00", R0, c0 - R0 @ cpart), ("t01", R0, c0 + STEP_MM * axis - R0 @ cpart),
                  ("r00", R2, c0 - R2 @ cpart)]
+        return {"rotation_deg": rot, "axis": axis, "stage_axis": sax, "angle_deg": angle, "poses": poses,
+                "centre": c0, "cpart": cpart, "bbox": bb}
+
+    def shoot_set(self, folder, label, dims, imp, z, base, rng, depth):
+        from .session import pose_json, write_json
+        s, m, g = self.s, self.m, self.m.geom
+        doc, root = physical.physical_part(self.kind, dims, imp)
+        os.makedirs(folder, exist_ok=True)
+        if doc is not None:
+            write_json(os.path.join(folder, "physical_part.json"), doc)
+        pl = self.placement(dims, z, base, rng)
+        rot, axis, sax, angle, poses = pl["rotation_deg"], pl["axis"], pl["stage_axis"], pl["angle_deg"], pl["poses"]
+        R0, R2, c0 = poses[0][1], poses[2][1], pl["centre"]
+        bb = pl["bbox"]
         shots, shadow = [], np.zeros((g.rows, g.columns), bool)
         margin = 0.02 * max(g.columns, g.rows)
         for i, (name, R, t) in enumerate(poses):

@@ -78,7 +78,7 @@ class PartRun:
         return np.random.default_rng([self.m.seed, zlib.crc32(f"measured/{self.kind}/{tag}".encode())])
 
     def magnification(self, dims):
-        m, g = self.m, self.m.geom
+        m = self.m
         cfg = m.cfg.get("parts", {}).get(self.kind, {})
         M = float(cfg.get("magnification", m.cfg["prism"]["magnification"]))
         bb = Scene(self.pm.build(dims)).bbox_corners_world()

@@ -30,7 +30,6 @@ so the file that is rendered is the file in the dataset
 import math
 import os
 
-import numpy as np
 
 from . import imperfect
 from .partmodel import PartModel, build_shape, rotation_matrix

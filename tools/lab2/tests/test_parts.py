@@ -218,7 +218,7 @@ def test_parts_datasets_and_jobs(session):
                 assert lo <= job["dimensions"]["start"][k] <= hi and lo <= v <= hi
                 assert job["dimensions"]["start"][k] * 2 == round(job["dimensions"]["start"][k] * 2)
             pb = job["pose_bounds"]
-            e0 = t0 = None
+            e0 = None
             for shot in ts["shots"][:n]:
                 if shot["pattern"] == "translated":
                     continue

@@ -95,3 +95,7 @@ def machine(id):
         if m["id"] == id:
             return copy.deepcopy(m)
     raise KeyError(f"unknown machine {id!r} (known: {', '.join(m['id'] for m in MACHINES)})")
+
+# The measured-parts suite (lab2.py suite): the small panels, one per halo shape, so that a whole run stays
+# within about half an hour on two cores.
+SUITE = ["m01", "m02", "m06", "m08"]

@@ -14,6 +14,8 @@ from scipy import ndimage
 
 from . import detector as Dt
 from . import imperfect
+from . import measured
+from . import stated
 from . import tiffio
 from .geometry import Box, Cylinder, Mesh
 from .partmodel import Node, PartModel, euler_from_matrix, rotation_matrix
@@ -106,10 +108,12 @@ class Session:
     """Writes one machine folder.  Frames are exposed in the order they are
     generated; each frame lags the previous one unless it follows a rest."""
 
-    def __init__(self, machine, out, imperfections=False, log=print):
+    def __init__(self, machine, out, imperfections=False, log=print, parts=(), masters=3):
         self.m = machine
         self.out = os.path.abspath(out)
         self.imperfect = imperfections
+        self.parts = list(parts)
+        self.masters = int(masters)
         self.log = log
         self.prev = None
         self.prev_name = None
@@ -133,6 +137,15 @@ class Session:
         cfg = m.cfg
         write_json(os.path.join(self.out, "lab2_machine.json"), cfg)
         write_json(os.path.join(self.out, "machine.json"), m.geom.machine_json(cfg.get("description", "")))
+        halo = m.detector.halo.truth()
+        self.stated = stated.draw_session(m.seed, float(m.detector.p["lag_fraction"]), float(halo["weight"]),
+                                          float(halo["gaussian_equivalent_sigma_mm"]),
+                                          PartModel(os.path.join(PARTS, "wedge_block.json")).nominal)
+        ms = m.geom.machine_json(cfg.get("description", "") + "; the lab's stated lag fraction (drawn: true plus an "
+                                 "error of its stated u, lab2_truth.json stated_inputs)")
+        ms["detector"]["lag_fraction"] = self.stated["lag_fraction"]["value"]
+        ms["uncertainty"] = {"lag_fraction": self.stated["lag_fraction"]["u"]}
+        write_json(os.path.join(self.out, "machine_stated.json"), ms)
         self.dark, self.flat = self.dark_flat()
         self.bad = Dt.bad_pixel_mask(self.dark, self.flat, m.detector.dead | m.detector.hot)
         self.timings["dark_flat_s"] = time.time() - t0
@@ -145,6 +158,11 @@ class Session:
         t = time.time()
         prism = self.prism()
         self.timings["prism_s"] = time.time() - t
+        parts = {}
+        for kind in self.parts:
+            t = time.time()
+            parts[kind] = measured.PartRun(self, kind, self.masters).run()
+            self.timings[f"measured_{kind}_s"] = time.time() - t
         self.timings["total_s"] = time.time() - t0
         truth = {
             "lab": "lab2 (tools/lab2), independent of xgauge's src/lab",
@@ -164,6 +182,8 @@ class Session:
             "characterisation": char,
             "wedge": wedge,
             "prism": prism,
+            "stated_inputs": self.stated,
+            "measured": parts,
             "timings_s": self.timings,
             "not_modelled": NOT_MODELLED,
         }
@@ -387,10 +407,13 @@ class Session:
                                 f"magnification {M:.3f}", [T])
         job = {
             "description": f"lab2 {m.cfg['id']}: calibrate the aluminium curve from the wedge shot, the wedge "
-                           "fitted as a known part at its caliper (nominal) values; scatter estimated from the halo",
+                           "fitted as a known part at its caliper values (the true, nominal, values plus a caliper's "
+                           f"error drawn with its stated u = {self.stated['caliper']['u_mm']} mm); scatter estimated "
+                           "from the halo",
             "machine": "../machine.json",
             "radiograph": {"image": "calibration.tif", "dark": "dark.tif", "flat": "flat.tif", "white_region": wr},
-            "wedge": {"model": pm.path, "dimensions": {k: float(v) for k, v in dims.items()}},
+            "wedge": {"model": pm.path, "dimensions": dict(self.stated["caliper"]["values"]),
+                      "dimension_uncertainty_mm": self.stated["caliper"]["u_mm"]},
             "rate_floor": {"compound": AL[0], "density_g_cm3": AL[1], "tube_kv": m.beam.tube_kv},
         }
         write_json(os.path.join(folder, "calibrate_wedge.json"), job)

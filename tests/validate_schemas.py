@@ -41,6 +41,7 @@ RULES = [
     ("examples", "aluminium_*.json", "material"),
     ("examples", "material_*.json", "material"),
     ("examples", "*_job.json", "job"),
+    ("examples", "*_plan.json", "plan"),
     ("examples", "calibrate_wedge*.json", "calibrate_wedge"),
     ("examples", "calibrate_*.json", "calibrate_part"),
     ("examples", "study_*.json", "study"),

@@ -2,10 +2,12 @@
 // The CLI only parses arguments and calls the library; bad input surfaces
 // here as xgauge::Error, printed once, with a non-zero exit status.
 #include "calibrate_command.h"
+#include "inspect_command.h"
 #include "measure_command.h"
 #include "normalize_command.h"
 #include "render_command.h"
 #include "simulate_command.h"
+#include "spc_command.h"
 #include "study_command.h"
 #include "verify_command.h"
 
@@ -61,6 +63,12 @@ int main(int argc, char** argv) {
   xgauge::cli::addSimulateCommand(app, simulate);
   xgauge::cli::VerifyArguments verify;
   xgauge::cli::addVerifyCommand(app, verify);
+  xgauge::cli::InspectArguments inspect;
+  xgauge::cli::addInspectCommand(app, inspect);
+  xgauge::cli::SpcArguments spc;
+  xgauge::cli::addSpcCommand(app, spc);
+  xgauge::cli::ExportArguments exporting;
+  xgauge::cli::addExportCommand(app, exporting);
 
   try {
     app.parse(argc, argv);
@@ -82,6 +90,9 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("material")) xgauge::cli::runMaterial(material);
     if (app.got_subcommand("study")) xgauge::cli::runStudyCommand(study);
     if (app.got_subcommand("verify")) xgauge::cli::runVerify(verify);
+    if (app.got_subcommand("inspect")) return xgauge::cli::runInspect(inspect);
+    if (app.got_subcommand("spc")) xgauge::cli::runSpc(spc);
+    if (app.got_subcommand("export")) xgauge::cli::runExport(exporting);
     if (app.got_subcommand("calibrate")) xgauge::cli::runCalibrate(app, calibrate_wedge, calibrate_part);
   } catch (const xgauge::Error& e) {
     std::fprintf(stderr, "xgauge: error: %s\n", e.what());

@@ -167,6 +167,7 @@ LotReport simulateLot(const Recipe& recipe, const fs::path& folder) {
   const Vec3 centre = 0.5 * (box.min_mm + box.max_mm);
 
   createOutputFolder(folder);
+  createOutputFolder(folder / "parts");
   createOutputFolder(folder / "truth");
   LotReport report;
   report.parts = static_cast<int>(spec.parts);
@@ -190,7 +191,7 @@ LotReport simulateLot(const Recipe& recipe, const fs::path& folder) {
          {"dimensions", part.true_dimensions},
          {"pose_jitter",
           {{"rotation_deg", jitter.eulerDeg()}, {"translation_mm", jitter.translation_mm}}}});
-    const fs::path part_folder = folder / id;
+    const fs::path part_folder = folder / "parts" / id;
     if (checkPartFolder(part_folder).state == PartFolderState::kReady &&
         fs::exists(folder / "truth" / (id + ".json"))) {
       bar.advance();

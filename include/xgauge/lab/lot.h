@@ -20,9 +20,10 @@
 //                   centre and moved by N(0, t) along each axis, the same for all its
 //                   shots (the stage then moves it as the recipe says). Default 0.
 //
-// Output folder: p0001/ ... pNNNN/ with the shots' raw TIFFs, dark.tif,
-// flat.tif and manifest.json (written last); truth/pNNNN.json, each part's
-// dataset truth (lab/dataset.h); truth.json, the lot's truth (every part's
+// Output folder: parts/p0001/ ... parts/pNNNN/ with the shots' raw TIFFs,
+// dark.tif, flat.tif and manifest.json (written last): the folder of part
+// folders `xgauge inspect` reads; truth/pNNNN.json, each part's dataset
+// truth (lab/dataset.h); truth.json, the lot's truth (every part's
 // dimensions, seed, time and jitter), written last. A part folder whose
 // manifest is complete is kept, so an interrupted lot resumes.
 #pragma once

@@ -142,8 +142,8 @@ class Production : public ::testing::Test {
   // inspect over the lot folder into `store`, outputs in `out`.
   static std::string inspectArgs(const std::string& store, const std::string& out,
                                  const std::string& extra = "") {
-    return (work() / "plan.json").string() + " " + (work() / "lot/parts").string() + " --store " + store +
-           " -o " + (work() / out).string() + " --no-report -q " + extra;
+    return (work() / "plan.json").string() + " " + (work() / "lot/parts").string() + " --store " +
+           store + " -o " + (work() / out).string() + " --no-report -q " + extra;
   }
 };
 

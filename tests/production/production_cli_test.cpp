@@ -280,6 +280,37 @@ TEST_F(Production, SpcPagesAlarmsAndTheDfqExport) {
   }
 }
 
+TEST_F(Production, StudyShardsTogetherMakeTheWholeStudy) {
+  if (!g_postgres.empty()) GTEST_SKIP() << "a study keeps no store";
+  const std::string data = kRoot + "/tests/data";
+  const fs::path dataset = work() / "cuboid";
+  ASSERT_EQ(run("simulate " + data + "/report_cuboid.json -o " + dataset.string() + " -q").status,
+            0);
+  const nlohmann::json settings = {{"material", "fit"},
+                                   {"schedule", "gauss-newton"},
+                                   {"pose_bounds",
+                                    {{"rotation_deg", {{-5, 5}, {-5, 5}, {-5, 5}}},
+                                     {"centre_mm", {{-40, 40}, {-20, 20}, {480, 520}}}}}};
+  std::ofstream(work() / "study.json") << settings.dump();
+  const std::string args = "study " + dataset.string() + " -s " + (work() / "study.json").string() +
+                           " --limit 3 --no-report -q -o " + (work() / "study").string();
+  const pid_t one = start(args + " --shard 1/2", work() / "study.out");
+  const pid_t two = start(args + " --shard 2/2", work() / "study.out");
+  EXPECT_EQ(wait(one), 0);
+  EXPECT_EQ(wait(two), 0);
+  EXPECT_FALSE(fs::exists(work() / "study/study.json"));  // a shard writes no summary
+  size_t runs = 0;
+  for (const auto& e : fs::directory_iterator(work() / "study/runs"))
+    runs += fs::exists(e.path() / "result.json");
+  EXPECT_EQ(runs, 3u);
+  // Gathering measures nothing again: every run's result is there.
+  const auto gathered = run(args);
+  ASSERT_EQ(gathered.status, 0) << gathered.output;
+  const auto study = nlohmann::json::parse(readText(work() / "study/study.json"));
+  EXPECT_EQ(study.at("runs").size(), 3u);
+  for (const auto& r : study.at("runs")) EXPECT_EQ(r.at("status"), "measured");
+}
+
 TEST_F(Production, WatchTakesPartsAsTheyArrive) {
   if (!g_postgres.empty()) GTEST_SKIP() << "runs on SQLite";
   const std::string store = freshStore("watch.sqlite");

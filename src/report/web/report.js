@@ -96,7 +96,7 @@
       },
       axes: [Object.assign({ label: opts.xLabel || '' }, opts.xIncrs ? { incrs: opts.xIncrs } : {},
         opts.xValues ? { values: opts.xValues } : {}),
-        { label: opts.yLabel || '', size: 70, values: (u, splits) => splits.map(tickLabel) }],
+        { label: opts.yLabel || '', size: 70, values: opts.yValues || ((u, splits) => splits.map(tickLabel)) }],
       legend: { show: opts.legend !== false },
       series: [{ label: opts.xLabel || 'x' }].concat(series.map((s) => {
         const out = {

@@ -33,6 +33,15 @@
     };
   }
 
+  // Ticks of a measured dimension: as many decimals as the step between
+  // ticks needs (20.05, 20.06, ... rather than 20.1, 20.1, ...).
+  function dimensionTicks(u, splits) {
+    const step = splits.length > 1 ? Math.abs(splits[1] - splits[0]) : 1;
+    const decimals = Math.min(6, Math.max(0, Math.ceil(-Math.log10(step || 1)) + 1));
+    return splits.map((v) => v.toFixed(decimals));
+  }
+  const wholeParts = [1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000];
+
   window.xgaugeExtraPages.spc = function (data, root, h) {
     const s = data.spc;
     const { el, chart, table, section, meta, fixed, isNum } = h;
@@ -73,18 +82,19 @@
       { label: 'LCL', stroke: '#ff7f0e', values: constant(s.limits.lower), width: 1 },
       { label: 'USL', stroke: '#7f7f7f', values: constant(t.upper), width: 1 },
       { label: 'LSL', stroke: '#7f7f7f', values: constant(t.lower), width: 1 },
-    ], { xLabel: 'part' });
+    ], { xLabel: 'part', xIncrs: wholeParts, yValues: dimensionTicks });
     chart(charts, `Moving range (${s.unit})`, xs, [
       { label: 'MR', stroke: '#1f77b4', values: s.moving_ranges },
       { label: 'alarm', stroke: '#d62728', values: flagged('moving range'), points: true, size: 9 },
       { label: 'MR-bar', stroke: '#2ca02c', values: constant(s.limits.mr_centre), width: 1 },
       { label: 'UCL', stroke: '#ff7f0e', values: constant(s.limits.mr_upper), width: 1 },
-    ], { xLabel: 'part' });
+    ], { xLabel: 'part', xIncrs: wholeParts, yValues: dimensionTicks });
     const hist = s.histogram;
     chart(charts, `Histogram with the specification limits (${s.unit})`, hist.centres, [
       { label: 'parts', stroke: '#1f77b4', values: hist.counts, bars: true },
     ], {
       xLabel: s.unit,
+      xValues: dimensionTicks,
       xRange: [Math.min(hist.centres[0] - hist.width, isNum(t.lower) ? t.lower : Infinity),
         Math.max(hist.centres[hist.centres.length - 1] + hist.width, isNum(t.upper) ? t.upper : -Infinity)],
       hooks: { draw: [lines([{ at: t.lower, colour: '#d62728' }, { at: t.upper, colour: '#d62728' },

@@ -17,6 +17,9 @@ packages=(
   libcli11-dev         # command line parsing
   libfmt-dev libspdlog-dev
   libstb-dev           # PNG previews (stb_image_write)
+  libsqlite3-dev       # the results store (src/production), SQLite by default
+  libpqxx-dev          # ... and PostgreSQL for several stations
+  postgresql           # CTest starts a throw-away server for the PostgreSQL store's tests
   libgtest-dev libgmock-dev libbenchmark-dev
   python3-jsonschema   # tests/validate_schemas.py: JSON files against docs/schemas
   python3-numpy python3-scipy python3-xraylib python3-tifffile python3-pytest

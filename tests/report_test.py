@@ -3,7 +3,9 @@
 
 Simulates two small sessions with the virtual lab (tests/data/report_*.json),
 runs every command that writes a report.html (calibrate wedge, calibrate
-part, measure, study) and a calibration that fails (failed_calibration.html), opens each page in headless Chromium (tests/browser.py)
+part, measure, study), a calibration that fails (failed_calibration.html)
+and an SPC page (a lot of 4 cuboids inspected, then `xgauge spc`: its alarm
+rows, Cpk and charts against spc.json), opens each page in headless Chromium (tests/browser.py)
 and checks that:
 - the page draws itself with no console error, no exception and no request
   beyond its own file;
@@ -115,6 +117,25 @@ def make_reports(xgauge, source, work):
         "pose_bounds": bounds, "schedule": "default", "loss": "l1"})
     run(xgauge, "study", "cuboid", "-s", "study_settings.json", "--limit", "2", "-o", "study")
     reports["study"] = ("study/report.html", "study/study.json")
+
+    # An SPC page: a lot of 4 cuboids (size_x drifting from part 3) inspected, then charted.
+    run(xgauge, "simulate", os.path.join(data, "lot_cuboid.json"), "-o", "lot", "-q")
+    run(xgauge, "material", "--from-truth", "lot/truth/p0001.json", "-o", "lot_material.json", "-q")
+    lot_frames = {"dark": "dark.tif", "flat": "flat.tif", "white_region": [2, 2, 20, 20]}
+    write_json("lot_plan.json", {
+        "lot": "L1", "store": "lot.sqlite", "source": "lot/parts", "output": "lot_out",
+        "job": {"part": os.path.join(parts, "cuboid.json"), "machine": machine,
+                "material": "lot_material.json", "schedule": "gauss-newton",
+                "radiographs": [dict(name="t00", image="t00.tif", **lot_frames),
+                                dict(name="t01", image="t01.tif", pattern="translated", reference="t00",
+                                     distance_mm=10.0, **lot_frames)],
+                "pose_bounds": bounds, "dimensions": {"fixed": {"size_y": 29.98}},
+                "unverified_verdicts": True,
+                "tolerances": {"size_x": {"nominal": 20.03, "lower": -0.1, "upper": 0.1},
+                               "size_z": {"nominal": 10.02, "lower": -0.1, "upper": 0.1}}}})
+    run(xgauge, "inspect", "lot_plan.json", "--no-report", "-q")
+    run(xgauge, "spc", "lot.sqlite", "-o", "spc", "--baseline", "2", "-q")
+    reports["spc"] = ("spc/L1/size_x.html", "spc/L1/spc.json")
     return reports
 
 
@@ -189,6 +210,19 @@ def check_calibration(browser, material):
     check(charts >= 3, f"calibration: {charts} charts (curve, residual, deviation from the truth)")
 
 
+def check_spc(browser, analyses):
+    spc = next(a for a in analyses if a["dimension"] == "size_x")
+    rows = browser.evaluate("Array.from(document.querySelectorAll('tr.alarm')).map(r => [r.dataset.rule, r.dataset.part])")
+    check(rows == [[h["rule"], h["part"]] for h in spc["hits"]], f"spc: alarm rows {rows} != {spc['hits']}")
+    check(len(rows) >= 1, "spc: the test lot's drift should raise an alarm")
+    cpk = browser.evaluate("Number(document.querySelector('td.cpk').dataset.value)")
+    check(cpk == spc["capability"]["cpk"]["value"], f"spc: Cpk shows {cpk}, spc.json {spc['capability']['cpk']['value']}")
+    charts = browser.evaluate("document.querySelectorAll('.uplot').length")
+    check(charts == 3, f"spc: {charts} charts, expected the individuals, moving-range and histogram charts")
+    warning = browser.evaluate("document.querySelectorAll('.ut-warning').length")
+    check(warning == (1 if spc["u_over_t_warning"] else 0), f"spc: U/T warning shown {warning} times, u_over_t {spc['u_over_t']}")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--xgauge", required=True)
@@ -203,7 +237,7 @@ def main():
     os.chdir(args.work)
     reports = make_reports(xgauge, source, args.work)
 
-    checks = {"measurement": check_measurement, "study": check_study}
+    checks = {"measurement": check_measurement, "study": check_study, "spc": check_spc}
     with Browser(chromium=args.chromium, width=1280, height=900, timeout_s=120) as browser:
         for label, (page, json_file) in reports.items():
             path = os.path.abspath(page)
@@ -216,7 +250,7 @@ def main():
             kind = browser.evaluate("document.documentElement.dataset.report")
             with open(json_file) as f:
                 result = json.load(f)
-            if result.get("failed"):
+            if isinstance(result, dict) and result.get("failed"):
                 check_failure(browser, result)
             else:
                 (checks.get(kind) or check_calibration)(browser, result)

@@ -3,10 +3,12 @@
 // here as xgauge::Error, printed once, with a non-zero exit status.
 #include "calibrate_command.h"
 #include "characterize_command.h"
+#include "inspect_command.h"
 #include "measure_command.h"
 #include "normalize_command.h"
 #include "render_command.h"
 #include "simulate_command.h"
+#include "spc_command.h"
 #include "study_command.h"
 #include "verify_command.h"
 
@@ -64,6 +66,12 @@ int main(int argc, char** argv) {
   xgauge::cli::addVerifyCommand(app, verify);
   xgauge::cli::CharacterizeArguments characterize;
   xgauge::cli::addCharacterizeCommand(app, characterize);
+  xgauge::cli::InspectArguments inspect;
+  xgauge::cli::addInspectCommand(app, inspect);
+  xgauge::cli::SpcArguments spc;
+  xgauge::cli::addSpcCommand(app, spc);
+  xgauge::cli::ExportArguments exporting;
+  xgauge::cli::addExportCommand(app, exporting);
 
   try {
     app.parse(argc, argv);
@@ -86,6 +94,9 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("study")) xgauge::cli::runStudyCommand(study);
     if (app.got_subcommand("verify")) xgauge::cli::runVerify(verify);
     if (app.got_subcommand("characterize")) xgauge::cli::runCharacterize(characterize);
+    if (app.got_subcommand("inspect")) return xgauge::cli::runInspect(inspect);
+    if (app.got_subcommand("spc")) xgauge::cli::runSpc(spc);
+    if (app.got_subcommand("export")) xgauge::cli::runExport(exporting);
     if (app.got_subcommand("calibrate")) xgauge::cli::runCalibrate(app, calibrate_wedge, calibrate_part);
   } catch (const xgauge::Error& e) {
     std::fprintf(stderr, "xgauge: error: %s\n", e.what());

@@ -2,6 +2,7 @@
 
 #include "xgauge/core/output.h"
 #include "xgauge/lab/dataset.h"
+#include "xgauge/lab/lot.h"
 #include "xgauge/lab/recipe.h"
 
 #include <spdlog/spdlog.h>
@@ -19,6 +20,14 @@ void addSimulateCommand(CLI::App& app, SimulateArguments& args) {
 void runSimulate(const SimulateArguments& args) {
   const Recipe recipe = Recipe::load(args.recipe);
   checkOutputFolder(args.output);
+  if (isLotRecipe(recipe)) {
+    // Part by part, each folder complete when its manifest appears: no
+    // transaction holds them back (an interrupted lot resumes).
+    const LotReport lot = simulateLot(recipe, args.output);
+    spdlog::info("lot in {}: {} parts ({} made now) in {:.1f} s", args.output, lot.parts,
+                 lot.simulated, lot.seconds);
+    return;
+  }
   OutputTransaction outputs;
   spdlog::info("simulating {} shots of {} into {}", recipe.shots.size(),
                recipe.part_file.filename().string(), args.output);

@@ -1,5 +1,6 @@
 #include "study_command.h"
 
+#include "xgauge/core/error.h"
 #include "xgauge/core/output.h"
 #include "xgauge/study/study.h"
 
@@ -22,6 +23,9 @@ void addStudyCommand(CLI::App& app, StudyArguments& args) {
   cmd->add_flag("--report,!--no-report", args.report,
                 "Write report.html, the study report (default: on)");
   cmd->add_option("-o,--output", args.output, "Output folder (resumes a study already there)")->required();
+  cmd->add_option("--shard", args.shard,
+                  "i/N: only every N-th run, from the i-th (array tasks sharing one output folder; "
+                  "then run once without --shard to gather them)");
 }
 
 void runStudyCommand(const StudyArguments& args) {
@@ -34,7 +38,20 @@ void runStudyCommand(const StudyArguments& args) {
   options.output = args.output;
   options.images = args.images;
   options.report = args.report;
+  if (!args.shard.empty()) {
+    int index = 0, count = 0;
+    char rest = 0;
+    if (std::sscanf(args.shard.c_str(), "%d/%d%c", &index, &count, &rest) != 2 || count < 1 ||
+        index < 1 || index > count)
+      fail("--shard {}: expected i/N with 1 <= i <= N", args.shard);
+    options.shard_index = index, options.shard_count = count;
+  }
   const StudySummary summary = runStudy(options);
+  if (options.shard_count > 1) {
+    spdlog::info("shard {}/{}: {} run(s) in {}/runs; run the study without --shard to gather",
+                 options.shard_index, options.shard_count, summary.runs.size(), args.output);
+    return;
+  }
   std::fputs(summary.table().c_str(), stdout);
   spdlog::info("wrote {}/study.csv, study.json{}", args.output,
                args.report ? " and report.html" : "");

@@ -15,6 +15,7 @@ struct StudyArguments {
   std::string output;
   bool images = false;
   bool report = true;
+  std::string shard;
 };
 
 void addStudyCommand(CLI::App& app, StudyArguments& args);

@@ -79,6 +79,8 @@ std::string_view reportKindName(ReportKind kind) {
       return "calibration";
     case ReportKind::kStudy:
       return "study";
+    case ReportKind::kSpc:
+      return "spc";
   }
   return "unknown";
 }
@@ -126,6 +128,10 @@ std::string reportPage(ReportKind kind, std::string_view title, const nlohmann::
   page += "-->\n<script>\n";
   page += web::kUplotJs;
   page += "\n</script>\n<script>\n";
+  if (kind == ReportKind::kSpc) {
+    page += web::kSpcJs;
+    page += "\n</script>\n<script>\n";
+  }
   page += web::kReportJs;
   page += "\n</script>\n</body>\n</html>\n";
   return page;

@@ -12,5 +12,6 @@ extern const std::string_view kUplotCss;      // uPlot.min.css
 extern const std::string_view kUplotLicense;  // its MIT licence, inlined with it
 extern const std::string_view kReportJs;      // src/report/web/report.js
 extern const std::string_view kReportCss;     // src/report/web/report.css
+extern const std::string_view kSpcJs;         // src/report/web/spc.js: the SPC page
 
 }  // namespace xgauge::web

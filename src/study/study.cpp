@@ -432,6 +432,16 @@ StudySummary runStudy(const StudyOptions& options) {
   std::vector<Combination> runs = combinations(truth, options.combinations);
   if (options.limit > 0 && static_cast<size_t>(options.limit) < runs.size())
     runs.resize(static_cast<size_t>(options.limit));
+  // A shard takes every N-th run; each run's folder is its own, so shards
+  // share one output folder, and a run without --shard gathers them all.
+  if (options.shard_count > 1) {
+    std::vector<Combination> mine;
+    for (size_t i = 0; i < runs.size(); ++i)
+      if (static_cast<int>(i % static_cast<size_t>(options.shard_count)) == options.shard_index - 1)
+        mine.push_back(runs[i]);
+    runs = std::move(mine);
+    if (runs.empty()) return {};
+  }
 
   // Every job first, checked against the part model (so a bad setting fails
   // before any work); each is also written as a record of the run.
@@ -557,7 +567,9 @@ StudySummary runStudy(const StudyOptions& options) {
   finish(summary.pooled);
   std::sort(seconds.begin(), seconds.end());
   summary.median_seconds = seconds[seconds.size() / 2];
-  writeFileAtomically(options.output / "study.csv", csv);
+  // A shard's figures are a part of the study's: its files come from the
+  // run that gathers every shard.
+  if (options.shard_count == 1) writeFileAtomically(options.output / "study.csv", csv);
   nlohmann::json per_dim = nlohmann::json::object();
   auto coverageJson = [](const CoverageFigures& c) {
     return nlohmann::json{{"runs_with_u", c.runs},
@@ -601,6 +613,7 @@ StudySummary runStudy(const StudyOptions& options) {
                                      {"median_seconds", summary.median_seconds},
                                      {"measured_runs", summary.measured_runs},
                                      {"runs", all_runs}};
+  if (options.shard_count > 1) return summary;
   writeFileAtomically(options.output / "study.json", study_json.dump(2) + "\n");
   if (options.report)
     writeReport(options.output / "report.html", ReportKind::kStudy,

@@ -20,9 +20,10 @@
 
 namespace xgauge {
 
-// The three kinds of page; report.js draws each from its data.
-enum class ReportKind { kMeasurement, kCalibration, kStudy };
-std::string_view reportKindName(ReportKind kind);  // "measurement", "calibration", "study"
+// The kinds of page; report.js draws each from its data (spc: spc.js,
+// production/spc_report.h).
+enum class ReportKind { kMeasurement, kCalibration, kStudy, kSpc };
+std::string_view reportKindName(ReportKind kind);  // "measurement", ..., "spc"
 
 // The whole page: `data` is embedded as JSON (every '<' escaped, so no
 // string in it can end the script element); `title` is the page title.

@@ -37,6 +37,11 @@ struct StudyOptions {
   std::filesystem::path output;
   bool images = false;  // also write simulated and difference images per run
   bool report = true;   // write report.html (report/html.h) beside study.json
+  // --shard i/N: only runs i-1, i-1+N, ... (0-based), for a scheduler's
+  // array tasks sharing one output folder; no study.csv, study.json or
+  // report.html then: a run without a shard over the same folder gathers
+  // the shards' runs (each run's result is kept) and writes them.
+  int shard_index = 1, shard_count = 1;
 };
 
 struct StudyRun {

@@ -1,6 +1,7 @@
 // xgauge's inspection reports: builds the page from the JSON block that the
 // C++ side embeds (report/html.h; docs/formats.md, "report.html"). Three
-// kinds, chosen by <html data-report>: measurement, calibration, study.
+// kinds, chosen by <html data-report>: measurement, calibration, study
+// (and spc, drawn by spc.js).
 // Charts are drawn by uPlot (inlined before this script). Nothing is fetched.
 //
 // For tests and scripts the page marks what it shows:
@@ -95,7 +96,7 @@
       },
       axes: [Object.assign({ label: opts.xLabel || '' }, opts.xIncrs ? { incrs: opts.xIncrs } : {},
         opts.xValues ? { values: opts.xValues } : {}),
-        { label: opts.yLabel || '', size: 70, values: (u, splits) => splits.map(tickLabel) }],
+        { label: opts.yLabel || '', size: 70, values: opts.yValues || ((u, splits) => splits.map(tickLabel)) }],
       legend: { show: opts.legend !== false },
       series: [{ label: opts.xLabel || 'x' }].concat(series.map((s) => {
         const out = {
@@ -633,10 +634,13 @@
   try {
     const data = JSON.parse(document.getElementById('xgauge-data').textContent);
     const kind = document.documentElement.dataset.report;
-    const pages = { measurement: measurementPage, calibration: calibrationPage, study: studyPage };
+    // Pages of other modules (spc.js) register in window.xgaugeExtraPages
+    // and draw with these helpers.
+    const pages = Object.assign({ measurement: measurementPage, calibration: calibrationPage, study: studyPage },
+      window.xgaugeExtraPages || {});
     if (!pages[kind]) throw new Error('unknown report kind ' + kind);
-    pages[kind](data, root);
-    root.append(el('footer', {}, `Written by ${(data.result || data.calibration || data.failure || {}).software || 'xgauge'} on ${data.generated || ''}. ` +
+    pages[kind](data, root, { el, svg, chart, table, section, meta, fixed, signed, general, isNum, palette });
+    root.append(el('footer', {}, `Written by ${(data.result || data.calibration || data.failure || data.spc || {}).software || 'xgauge'} on ${data.generated || ''}. ` +
       'The JSON files beside this page hold every figure; charts by uPlot (MIT).'));
   } catch (e) {
     window.xgaugeErrors.push(String(e && e.stack ? e.stack : e));

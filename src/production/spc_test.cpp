@@ -1,0 +1,197 @@
+// SPC: limits, each run rule on a series built to trigger it at a known
+// point (and not before), capability and its intervals against closed forms.
+#include "xgauge/production/spc.h"
+
+#include "xgauge/core/error.h"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace xgauge {
+namespace {
+
+// Limits with centre 0 and sigma 1, so that values are in sigma units.
+ControlLimits unitLimits() {
+  ControlLimits l;
+  l.baseline_n = 20;
+  l.centre = 0.0;
+  l.sigma_within = 1.0;
+  l.lower = -3.0;
+  l.upper = 3.0;
+  l.mr_bar = kD2;
+  l.mr_upper = kD4 * kD2;
+  return l;
+}
+
+// Hits of one rule.
+std::vector<size_t> hitsOf(SpcRule rule, const std::vector<double>& x) {
+  std::vector<size_t> out;
+  for (const auto& h : applyRules(x, unitLimits(), {rule})) out.push_back(h.index);
+  return out;
+}
+
+// A quiet series: alternating small values (no rule but 4 and 7 can fire
+// on it, so those tests build their own).
+std::vector<double> quiet(size_t n) {
+  std::vector<double> x(n);
+  for (size_t i = 0; i < n; ++i) x[i] = (i % 3 == 0) ? 0.5 : (i % 3 == 1 ? -0.5 : 1.5);
+  return x;
+}
+
+TEST(Spc, LimitsFromTheMovingRange) {
+  // Moving ranges 1, 2, 3: MR-bar 2, sigma 2 / 1.128; mean 1.5.
+  const ControlLimits l = controlLimits({0.0, 1.0, 3.0, 0.0});
+  EXPECT_DOUBLE_EQ(l.centre, 1.0);
+  EXPECT_DOUBLE_EQ(l.mr_bar, 2.0);
+  EXPECT_DOUBLE_EQ(l.sigma_within, 2.0 / kD2);
+  EXPECT_DOUBLE_EQ(l.upper, 1.0 + 3.0 * 2.0 / kD2);
+  EXPECT_DOUBLE_EQ(l.mr_upper, kD4 * 2.0);
+  EXPECT_THROW(controlLimits({1.0}), Error);
+}
+
+TEST(Spc, Rule1OnePointBeyondThreeSigma) {
+  auto x = quiet(30);
+  x[17] = 3.2;
+  EXPECT_EQ(hitsOf(SpcRule::kBeyond3Sigma, x), std::vector<size_t>{17});
+  x[17] = 2.9;
+  EXPECT_TRUE(hitsOf(SpcRule::kBeyond3Sigma, x).empty());
+}
+
+TEST(Spc, Rule2NineOnOneSideFlaggedAtTheNinth) {
+  std::vector<double> x(40);
+  for (size_t i = 0; i < x.size(); ++i) x[i] = (i % 2 ? 0.4 : -0.4);
+  for (size_t i = 10; i < 25; ++i) x[i] = 0.3;  // 15 above: one alarm, at the 9th
+  x[9] = x[25] = -0.4;
+  EXPECT_EQ(hitsOf(SpcRule::kNineOneSide, x), std::vector<size_t>{18});
+  // Every completing point when asked for all of them.
+  EXPECT_EQ(applyRules(x, unitLimits(), {SpcRule::kNineOneSide}, false).size(), 7u);
+  x[14] = -0.3;  // broken into 4 + 10: the run of 10 completes at 23
+  EXPECT_EQ(hitsOf(SpcRule::kNineOneSide, x), std::vector<size_t>{23});
+}
+
+TEST(Spc, Rule3SixTrending) {
+  auto x = quiet(30);
+  for (size_t i = 0; i < 6; ++i) x[20 + i] = -1.0 + 0.3 * static_cast<double>(i);
+  EXPECT_EQ(hitsOf(SpcRule::kSixTrending, x), std::vector<size_t>{25});
+  x[23] = x[22];  // a tie breaks the trend
+  EXPECT_TRUE(hitsOf(SpcRule::kSixTrending, x).empty());
+}
+
+TEST(Spc, Rule4FourteenAlternating) {
+  std::vector<double> x(30, 0.0);
+  for (size_t i = 0; i < 30; ++i) x[i] = 0.01 * static_cast<double>(i);  // rising: no alternation
+  for (size_t i = 10; i < 24; ++i) x[i] = (i % 2 ? 0.5 : -0.5);          // points 10..23
+  x[9] = x[8];  // a tie: the alternation starts at 9 (down to 10, up to 11, ...)
+  EXPECT_EQ(hitsOf(SpcRule::kFourteenAlternating, x), std::vector<size_t>{22});
+}
+
+TEST(Spc, Rule5TwoOfThreeBeyondTwoSigma) {
+  auto x = quiet(30);
+  x[12] = 2.5;
+  x[14] = 2.2;
+  EXPECT_EQ(hitsOf(SpcRule::kTwoOfThreeBeyond2, x), std::vector<size_t>{14});
+  x[14] = -2.2;  // opposite sides do not count
+  EXPECT_TRUE(hitsOf(SpcRule::kTwoOfThreeBeyond2, x).empty());
+}
+
+TEST(Spc, Rule6FourOfFiveBeyondOneSigma) {
+  auto x = quiet(30);
+  for (size_t i : {20, 21, 23, 24}) x[i] = -1.4;
+  x[22] = 0.0;
+  EXPECT_EQ(hitsOf(SpcRule::kFourOfFiveBeyond1, x), std::vector<size_t>{24});
+}
+
+TEST(Spc, Rule7FifteenWithinOneSigma) {
+  std::vector<double> x(40, 1.5);
+  for (size_t i = 0; i < 40; ++i) x[i] = (i % 2 ? 1.5 : -1.5);
+  for (size_t i = 5; i < 20; ++i) x[i] = (i % 2 ? 0.5 : -0.5);  // 15 within
+  EXPECT_EQ(hitsOf(SpcRule::kFifteenWithin1, x), std::vector<size_t>{19});
+}
+
+TEST(Spc, Rule8EightBeyondOneSigmaEitherSide) {
+  auto x = quiet(30);
+  for (size_t i = 0; i < 30; ++i) x[i] = 0.2;
+  for (size_t i = 10; i < 18; ++i) x[i] = (i % 2 ? 1.2 : -1.3);
+  EXPECT_EQ(hitsOf(SpcRule::kEightBeyond1, x), std::vector<size_t>{17});
+}
+
+TEST(Spc, MovingRangeAboveItsLimit) {
+  auto x = quiet(30);
+  x[8] = x[7] + 3.8;  // MR upper limit 3.267 * 1.128 = 3.685
+  const auto hits = hitsOf(SpcRule::kMovingRange, x);
+  ASSERT_FALSE(hits.empty());
+  EXPECT_EQ(hits.front(), 8u);
+}
+
+TEST(Spc, ANormalProcessRaisesFewFalseAlarmsAndADriftIsCaught) {
+  std::mt19937_64 rng(47);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  std::vector<double> x(200);
+  for (size_t i = 0; i < x.size(); ++i)
+    x[i] = noise(rng) + (i >= 119 ? 0.6667 * static_cast<double>(i - 118) : 0.0);
+  const ControlLimits l = controlLimits(std::vector<double>(x.begin(), x.begin() + 100));
+  const auto hits = applyRules(x, l, allRules());
+  size_t before = 0, first_after = x.size();
+  for (const auto& h : hits) {
+    if (h.index < 119)
+      ++before;
+    else
+      first_after = std::min(first_after, h.index);
+  }
+  // About 3.6 expected from the nine rules' false-alarm rates over 119 points.
+  EXPECT_LE(before, 8u);
+  // A drift of 2/3 sigma per part is flagged within a few parts.
+  EXPECT_LT(first_after, 119u + 8u);
+}
+
+TEST(Spc, QuantilesMatchTables) {
+  EXPECT_NEAR(normalQuantile(0.975), 1.959963984540054, 1e-12);
+  EXPECT_NEAR(normalQuantile(0.001), -3.090232306167813, 1e-11);
+  // chi2 tables (Abramowitz and Stegun 26.4).
+  EXPECT_NEAR(chiSquareQuantile(0.025, 10), 3.246972780236841, 1e-9);
+  EXPECT_NEAR(chiSquareQuantile(0.975, 10), 20.48317735080739, 1e-9);
+  EXPECT_NEAR(chiSquareQuantile(0.975, 1), 5.023886187314888, 1e-9);
+  EXPECT_NEAR(chiSquareCdf(chiSquareQuantile(0.3, 4.5), 4.5), 0.3, 1e-12);
+}
+
+TEST(Spc, CapabilityAndItsIntervals) {
+  // Mean 10, s = 1 exactly (values -+ sqrt((n - 1) / n) around the mean).
+  const size_t n = 50;
+  std::vector<double> x;
+  const double a = std::sqrt(static_cast<double>(n - 1) / static_cast<double>(n));
+  for (size_t i = 0; i < n; ++i) x.push_back(10.0 + (i % 2 ? a : -a));
+  const Capability c = capability(x, 4.0, 19.0);
+  EXPECT_NEAR(c.s, 1.0, 1e-12);
+  EXPECT_NEAR(c.cp.value, 15.0 / 6.0, 1e-12);
+  EXPECT_NEAR(c.cpk.value, 2.0, 1e-12);
+  const double nu = n - 1;
+  EXPECT_NEAR(c.cp.low, 2.5 * std::sqrt(chiSquareQuantile(0.025, nu) / nu), 1e-12);
+  EXPECT_NEAR(c.cp.high, 2.5 * std::sqrt(chiSquareQuantile(0.975, nu) / nu), 1e-12);
+  const double half = 1.959963984540054 * std::sqrt(1.0 / (9.0 * n) + 4.0 / (2.0 * nu));
+  EXPECT_NEAR(c.cpk.low, 2.0 - half, 1e-9);
+  EXPECT_NEAR(c.cpk.high, 2.0 + half, 1e-9);
+  EXPECT_THROW(capability(x, 5.0, 4.0), Error);
+}
+
+TEST(Spc, CapabilityIntervalsCoverTheTrueValue) {
+  // 400 normal samples of 60: the 95 % intervals cover the true Cp and Cpk
+  // about 95 % of the time.
+  std::mt19937_64 rng(4747);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  const double lsl = -3.0, usl = 4.5, cp = 7.5 / 6.0, cpk = 3.0 / 3.0;
+  int cover_cp = 0, cover_cpk = 0;
+  const int trials = 400;
+  for (int t = 0; t < trials; ++t) {
+    std::vector<double> x(60);
+    for (auto& v : x) v = noise(rng);
+    const Capability c = capability(x, lsl, usl);
+    cover_cp += c.cp.low <= cp && cp <= c.cp.high;
+    cover_cpk += c.cpk.low <= cpk && cpk <= c.cpk.high;
+  }
+  EXPECT_NEAR(cover_cp / double(trials), 0.95, 0.035);
+  EXPECT_NEAR(cover_cpk / double(trials), 0.95, 0.035);
+}
+
+}  // namespace
+}  // namespace xgauge

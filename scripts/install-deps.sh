@@ -18,6 +18,7 @@ packages=(
   libfmt-dev libspdlog-dev
   libstb-dev           # PNG previews (stb_image_write)
   libgtest-dev libgmock-dev libbenchmark-dev
+  pybind11-dev python3-dev   # the Python module xgauge (python/, docs/python.md)
   python3-jsonschema   # tests/validate_schemas.py: JSON files against docs/schemas
   python3-numpy python3-scipy python3-xraylib python3-tifffile python3-pytest
                        # tools/lab2: the second, independent virtual lab and its tests

@@ -7,6 +7,8 @@ import os
 import pathlib
 import shutil
 import subprocess
+import threading
+import time
 
 import pytest
 
@@ -44,3 +46,29 @@ def cli():
         assert result.returncode == 0, result.stdout + result.stderr
         return result
     return run
+
+
+def run_beside_python(call):
+    """Runs call() while a pure-Python thread counts; returns (call's
+    result, seconds it took, how many times the thread counted while it ran,
+    leaving out 30 ms at either end). The thread counts only while the GIL
+    is free: a call that holds it throughout leaves the count at 0."""
+    stamps, stop = [], threading.Event()
+
+    def spin():
+        while not stop.is_set():
+            stamps.append(time.perf_counter())
+            for _ in range(1000):
+                pass
+
+    thread = threading.Thread(target=spin)
+    thread.start()
+    try:
+        time.sleep(0.05)
+        start = time.perf_counter()
+        result = call()
+        end = time.perf_counter()
+    finally:
+        stop.set()
+        thread.join()
+    return result, end - start, sum(start + 0.03 < t < end - 0.03 for t in stamps)

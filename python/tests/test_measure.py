@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import xgauge
-from conftest import CUBOID, MACHINE, MATERIAL, ROTATION_DEG, TRANSLATION_MM
+from conftest import CUBOID, MACHINE, MATERIAL, ROTATION_DEG, TRANSLATION_MM, run_beside_python
 
 
 def make_job(folder):
@@ -81,6 +81,13 @@ def test_a_job_given_as_a_dict_measures_the_same(measured):
     # The inputs' SHA-256 is keyed by file: the dict has none of its own.
     keys = TIMING | {"inputs_sha256"}
     assert without(summary.result, keys) == without(measured["summary"].result, keys)
+
+
+def test_the_gil_is_released_while_measuring(measured):
+    summary, seconds, counted = run_beside_python(
+        lambda: xgauge.measure(measured["folder"] / "job.json"))
+    assert summary.values == measured["summary"].values
+    assert counted > 10, f"{counted} counts in {seconds:.2f} s"
 
 
 def test_progress_reaches_the_callback(measured):

@@ -21,6 +21,7 @@ packages=(
   libpqxx-dev          # ... and PostgreSQL for several stations
   postgresql           # CTest starts a throw-away server for the PostgreSQL store's tests
   libgtest-dev libgmock-dev libbenchmark-dev
+  pybind11-dev python3-dev   # the Python module xgauge (python/, docs/python.md)
   python3-jsonschema   # tests/validate_schemas.py: JSON files against docs/schemas
   python3-numpy python3-scipy python3-xraylib python3-tifffile python3-pytest
                        # tools/lab2: the second, independent virtual lab and its tests

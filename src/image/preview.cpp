@@ -16,7 +16,12 @@
 // module may include its own copy of stb_image_write without clashing.
 #define STB_IMAGE_WRITE_IMPLEMENTATION
 #define STB_IMAGE_WRITE_STATIC
+// GCC inlines differently with -fPIC (XGAUGE_PYTHON) and then sees stb's
+// unchecked realloc in its zlib writer as a potential null dereference.
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wnull-dereference"
 #include <stb_image_write.h>
+#pragma GCC diagnostic pop
 
 namespace xgauge {
 

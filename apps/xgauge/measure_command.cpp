@@ -44,12 +44,7 @@ int runMeasure(const MeasureArguments& args) {
   sink->set_pattern("[%Y-%m-%d %H:%M:%S.%e] [%l] %v");
   spdlog::default_logger()->sinks().push_back(sink);
   ForwardModel model(inputs);
-  // The full-size losses from the full-size simulation the outputs show.
-  MeasureOptions options;
-  options.full_size_losses = false;
-  MeasurementResult result = measure(model, model.start(), options);
-  std::vector<Image> simulated = simulateRadiographs(model, result.theta);
-  takeFullSizeLosses(model, simulated, result);
+  auto [result, simulated] = measureWithPictures(model);
 
   bool toleranced = false, withheld = false;
   std::vector<Decision> decisions;

@@ -370,12 +370,10 @@ std::unique_ptr<Measurement> measureJob(const py::object& job_spec, const fs::pa
       m->inputs = std::make_unique<MeasurementInputs>(loadMeasurementInputs(job_file));
     }
     m->model = std::make_unique<ForwardModel>(*m->inputs);
-    // The full-size losses from the full-size simulation, as the CLI.
-    MeasureOptions options;
-    options.full_size_losses = false;
-    m->result = xgauge::measure(*m->model, m->model->start(), options);
-    m->simulated = simulateRadiographs(*m->model, m->result.theta);
-    takeFullSizeLosses(*m->model, m->simulated, m->result);
+    // As the CLI: the full-size losses from the full-size simulation.
+    MeasurementWithPictures measured = measureWithPictures(*m->model);
+    m->result = std::move(measured.result);
+    m->simulated = std::move(measured.simulated);
   }
   scope.finish();
   return m;

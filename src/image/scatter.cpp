@@ -129,6 +129,23 @@ double ScatterModel::equivalentSigmaMm() const {
   return sigma_mm;
 }
 
+namespace {
+
+// total += f * blurred (total empty: f * blurred): one Gaussian component of
+// a kernel's blur added to the others'.
+void addWeighted(Image& total, Image blurred, float f) {
+  if (total.empty()) {
+    for (float& value : blurred.pixels()) value *= f;
+    total = std::move(blurred);
+    return;
+  }
+  auto t = total.pixels();
+  const auto b = blurred.pixels();
+  for (size_t i = 0; i < t.size(); ++i) t[i] += f * b[i];
+}
+
+}  // namespace
+
 Image ScatterModel::spread(Image image, double pitch_mm, float outside) const {
   const bool open = border == HaloBorder::kOpen;
   const BlurBorder blur_border = open ? BlurBorder::kZero : BlurBorder::kMirror;
@@ -138,15 +155,7 @@ Image ScatterModel::spread(Image image, double pitch_mm, float outside) const {
   for (const GaussianTerm& term : components()) {
     if (term.fraction <= 0.0) continue;
     Image blurred = gaussianBlur(image, term.sigma / pitch_mm, blur_border);
-    const auto f = static_cast<float>(term.fraction);
-    if (total.empty()) {
-      for (float& value : blurred.pixels()) value *= f;
-      total = std::move(blurred);
-    } else {
-      auto t = total.pixels();
-      const auto b = blurred.pixels();
-      for (size_t i = 0; i < t.size(); ++i) t[i] += f * b[i];
-    }
+    addWeighted(total, std::move(blurred), static_cast<float>(term.fraction));
   }
   if (open)
     for (float& value : total.pixels()) value += outside;
@@ -165,15 +174,7 @@ Image ScatterModel::spreadAround(const Image& image, double pitch_mm, float outs
         image, std::sqrt(std::max(sigma * sigma - sigma_shrink_px2, 0.25 * sigma * sigma)), outside,
         blur_border);
     if (term.fraction == 1.0) return blurred;  // a single Gaussian: as it always was
-    const auto f = static_cast<float>(term.fraction);
-    if (total.empty()) {
-      for (float& value : blurred.pixels()) value *= f;
-      total = std::move(blurred);
-    } else {
-      auto t = total.pixels();
-      const auto b = blurred.pixels();
-      for (size_t i = 0; i < t.size(); ++i) t[i] += f * b[i];
-    }
+    addWeighted(total, std::move(blurred), static_cast<float>(term.fraction));
   }
   return total;
 }

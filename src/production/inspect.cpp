@@ -318,11 +318,7 @@ class Inspector {
     const MeasurementInputs inputs = loadMeasurementInputs(root, plan_.file, true);
     root.finish();
     ForwardModel model(inputs);
-    MeasureOptions options;
-    options.full_size_losses = false;
-    MeasurementResult result = measure(model, model.start(), options);
-    std::vector<Image> simulated = simulateRadiographs(model, result.theta);
-    takeFullSizeLosses(model, simulated, result);
+    auto [result, simulated] = measureWithPictures(model);
     nlohmann::json json = measurementJson(model, result);
     OutputTransaction outputs;
     writeMeasurementOutputs(model, result, out, options_.report, nullptr, std::move(simulated));

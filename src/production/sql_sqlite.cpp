@@ -11,6 +11,8 @@
 #include <sqlite3.h>
 
 #include <charconv>
+#include <chrono>
+#include <thread>
 
 namespace xgauge::sql {
 
@@ -28,6 +30,7 @@ using StatementHandle = std::unique_ptr<sqlite3_stmt, Finalize>;
 // Another process holding the write lock is waited for this long: a
 // measurement's write takes milliseconds, so only a stuck process gets here.
 constexpr int kBusyTimeoutMs = 60000;
+constexpr int kRetryMs = 20;
 
 class SqliteConnection final : public Connection {
  public:
@@ -43,7 +46,18 @@ class SqliteConnection final : public Connection {
     sqlite3_busy_timeout(db_.get(), kBusyTimeoutMs);
     // WAL: readers (spc, export) never block the stations writing, and a
     // commit survives kill -9 of the writer (it is in the log on disk).
-    script("PRAGMA journal_mode=WAL; PRAGMA foreign_keys=ON; PRAGMA synchronous=NORMAL;");
+    // Switching to WAL needs the file to itself for a moment, and SQLite
+    // answers SQLITE_BUSY there without calling the busy handler when a
+    // second station opens the store at the same instant; so it is retried
+    // here for as long as the busy timeout would have waited.
+    for (int waited_ms = 0;; waited_ms += kRetryMs) {
+      const int wal = sqlite3_exec(db_.get(), "PRAGMA journal_mode=WAL", nullptr, nullptr, nullptr);
+      if (wal == SQLITE_OK) break;
+      if ((wal & 0xff) != SQLITE_BUSY || waited_ms >= kBusyTimeoutMs)
+        fail("{}: cannot switch the results store to WAL: {}", file, sqlite3_errmsg(db_.get()));
+      std::this_thread::sleep_for(std::chrono::milliseconds(kRetryMs));
+    }
+    script("PRAGMA foreign_keys=ON; PRAGMA synchronous=NORMAL;");
   }
 
   Dialect dialect() const override { return Dialect::kSqlite; }

@@ -6,7 +6,51 @@ namespace xgauge {
 namespace {
 
 using store_cases::StoreTest;
+namespace fs = std::filesystem;
 INSTANTIATE_TEST_SUITE_P(Sqlite, StoreTest, ::testing::Values("sqlite"));
+
+// Stations started together open a new store at the same instant; SQLite
+// answers the switch to WAL with "database is locked" without waiting for
+// the busy timeout, so opening must retry it (seen as a flaky two-station
+// test before it did).
+TEST(SqliteStore, StationsOpeningANewStoreTogetherAllGetIt) {
+  const fs::path dir = fs::temp_directory_path() / fmt::format("xgauge_store_race_{}", ::getpid());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  constexpr int kRounds = 40, kStations = 3;
+  int failed = 0;
+  for (int round = 0; round < kRounds; ++round) {
+    const std::string file = (dir / fmt::format("r{}.sqlite", round)).string();
+    int ready[2];
+    ASSERT_EQ(::pipe(ready), 0);
+    std::vector<pid_t> children;
+    for (int s = 0; s < kStations; ++s) {
+      const pid_t pid = ::fork();
+      ASSERT_GE(pid, 0);
+      if (pid == 0) {
+        ::close(ready[1]);
+        char go;
+        [[maybe_unused]] const auto n = ::read(ready[0], &go, 1);  // all start at once
+        try {
+          ResultStore::open(file);
+        } catch (...) {
+          ::_exit(1);
+        }
+        ::_exit(0);
+      }
+      children.push_back(pid);
+    }
+    ::close(ready[0]);
+    ::close(ready[1]);  // end of file releases every child together
+    for (const pid_t pid : children) {
+      int status = 0;
+      ::waitpid(pid, &status, 0);
+      if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) ++failed;
+    }
+  }
+  fs::remove_all(dir);
+  EXPECT_EQ(failed, 0) << "of " << kRounds * kStations << " openings";
+}
 
 TEST(StoreResult, FillFromResultKeepsFreeDimensionsTolerancesWarningsAndRegions) {
   const auto result = nlohmann::json::parse(R"({

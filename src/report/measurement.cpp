@@ -225,6 +225,15 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
           {"inputs_sha256", inputs}};
 }
 
+MeasurementWithPictures measureWithPictures(ForwardModel& model) {
+  MeasureOptions options;
+  options.full_size_losses = false;
+  MeasurementWithPictures out{measure(model, model.start(), options), {}};
+  out.simulated = simulateRadiographs(model, out.result.theta);
+  takeFullSizeLosses(model, out.simulated, out.result);
+  return out;
+}
+
 std::vector<Image> simulateRadiographs(ForwardModel& model, std::span<const double> theta) {
   std::vector<Image> out;
   for (int r = 0; r < model.radiographCount(); ++r)

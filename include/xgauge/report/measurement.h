@@ -31,6 +31,16 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
 // size, 2 x 2 samples per pixel: what the outputs and the page show.
 std::vector<Image> simulateRadiographs(ForwardModel& model, std::span<const double> theta);
 
+// A measurement as `xgauge measure`, `xgauge inspect` and the Python module
+// run it: measure() from the model's start, then the final simulated
+// radiographs, from which each radiograph's full-size loss is taken
+// (MeasureOptions::full_size_losses) instead of rendering them twice.
+struct MeasurementWithPictures {
+  MeasurementResult result;
+  std::vector<Image> simulated;  // simulateRadiographs at the solution
+};
+MeasurementWithPictures measureWithPictures(ForwardModel& model);
+
 // The pictures of a measurement's page, {"residual_scale", "colour_map",
 // "radiographs"}; per radiograph the normalized radiograph, the simulated
 // one and the residual (simulated - measured) around its roi, the residual

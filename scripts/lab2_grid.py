@@ -36,6 +36,8 @@ import sys
 import time
 from pathlib import Path
 
+from characterize_lab2 import job_for as characterization_job
+
 ROOT = Path(__file__).resolve().parent.parent
 ALONG_BEAM = ("thickness", "groove_depth", "slot_depth")
 
@@ -92,18 +94,9 @@ def run(cmd, log):
 
 
 def characterize(args, m, lab, out):
-    """The characterisation job is written by `xgauge characterize
-    --template`-free convention: docs/formats.md, "xgauge characterize"."""
-    shots = lab / "characterisation"
-    job = {"machine": str(lab / "machine.json"),
-           "darks": sorted(str(p) for p in (lab / "darks").glob("*.tif")),
-           "flats": sorted(str(p) for p in (lab / "flats").glob("*.tif"))}
-    for key, name in (("edge", "edge.tif"), ("disc", "disc.tif"), ("crosstalk", "crosstalk.tif")):
-        if (shots / name).exists():
-            job[key] = str(shots / name)
-    if (shots / "lag_bright.tif").exists():
-        job["lag"] = {"bright": str(shots / "lag_bright.tif"),
-                      "after": str(shots / "lag_dark_after_bright.tif")}
+    """The characterisation job (docs/formats.md, "Characterisation job"),
+    as scripts/characterize_lab2.py writes it."""
+    job = characterization_job(lab)
     out.mkdir(parents=True, exist_ok=True)
     (out / "characterize.json").write_text(json.dumps(job, indent=2))
     rc, seconds = run([args.xgauge, "characterize", str(out / "characterize.json"), "-o",
@@ -115,10 +108,12 @@ def characterize(args, m, lab, out):
     if rc == 0:
         det = json.loads((out / "detector" / "detector.json").read_text())
         row["halo"] = det.get("halo")
+    else:
+        row["reason"] = (out / "characterize.log").read_text().strip().splitlines()[-1:]
     # A machine file that names the detector file, for the calibration.
     machine = json.loads((lab / "machine.json").read_text())
     if rc == 0:
-        machine["detector"] = str(out / "detector" / "detector.json")
+        machine["detector"]["characterization"] = str(out / "detector" / "detector.json")
     (out / "machine.json").write_text(json.dumps(machine, indent=2))
     return row
 
@@ -185,7 +180,11 @@ def table(grid):
             found = f"w {sc.get('weight', 0):.3f} σ {sc.get('sigma_mm', 0):.0f} mm"
         ch = row.get("characterize", {}).get("halo")
         if ch:
-            found = json.dumps(ch)[:60]
+            sc = ch.get("scatter", {})
+            found = f"{sc.get('shape', 'gaussian')}/{sc.get('border', 'mirror')} " \
+                f"w {sc.get('weight', 0):.3f} σ≈{ch.get('gaussian_equivalent_sigma_mm', 0):.0f} mm"
+        elif row.get("characterize", {}).get("rc"):
+            found = "characterize failed: " + " ".join(row["characterize"].get("reason", []))[:200]
         dev = f"{cal['max_deviation']:+.4f} at {cal['at_mm']:.1f}" if "max_deviation" in cal else \
             "failed"
         within = f"{100 * cal['within_2u']:.0f} %" if cal.get("within_2u") is not None else ""

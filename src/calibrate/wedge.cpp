@@ -296,6 +296,10 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   RadiographFrames frames;
   frames.dark = dark ? &*dark : nullptr;
   frames.flat = flat ? &*flat : nullptr;
+  frames.column_crosstalk = machine.column_crosstalk;
+  if (dark && machine.column_crosstalk > 0.0)
+    spdlog::info("{}: the detector's column crosstalk, {:.5f}, is undone on the raw frames", name,
+                 machine.column_crosstalk);
   std::optional<Image> previous;
   if (!spec.previous.empty()) {
     previous = readTiff(spec.previous);

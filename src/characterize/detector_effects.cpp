@@ -137,7 +137,11 @@ Estimate estimateLag(const Image& bright, const Image& after, const Image& dark,
   mean /= static_cast<double>(ratios.size());
   for (const double r : ratios) var += (r - mean) * (r - mean);
   var /= static_cast<double>(ratios.size() - 1);
-  return {total_after / total_bright, std::sqrt(var / static_cast<double>(ratios.size()))};
+  // A panel without lag reads a ratio scattered about zero; a lag fraction
+  // is not negative, so a negative reading is a lag of zero (with the
+  // reading's uncertainty), which every reader of the detector file takes.
+  return {std::max(0.0, total_after / total_bright),
+          std::sqrt(var / static_cast<double>(ratios.size()))};
 }
 
 Estimate estimateCrosstalk(const Image& c) {

@@ -3,6 +3,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -102,6 +103,56 @@ TEST(FlatFieldCorrect, Errors) {
   } catch (const Error& e) {
     EXPECT_TRUE(contains(e.what(), "pixel (7, 3)")) << e.what();
   }
+}
+
+// A panel whose every pixel also reads c times its column's mean signal
+// (the detector file's crosstalk): with c given, the flat-field corrected
+// image is the true transmission again; without, a column through a dark
+// shadow reads open pixels too dark and shadowed ones too bright.
+TEST(NormalizeRadiograph, UndoesTheColumnCrosstalkOfACharacterisedPanel) {
+  constexpr int kW = 40, kH = 30;
+  constexpr double kC = 0.006;
+  Image dark(kW, kH), flat(kW, kH), raw(kW, kH);
+  Image truth(kW, kH);
+  for (int v = 0; v < kH; ++v)
+    for (int u = 0; u < kW; ++u) {
+      dark(u, v) = static_cast<float>(900.0 + 3.0 * ((u * 7 + v * 3) % 5));
+      const double gain = 30000.0 * (1.0 + 0.02 * std::sin(0.3 * u + 0.2 * v));
+      const double t = (u > 10 && u < 30 && v > 5 && v < 25) ? 0.2 + 0.02 * u : 1.0;
+      truth(u, v) = static_cast<float>(t);
+      flat(u, v) = static_cast<float>(gain);  // signals R; crosstalk and dark added below
+      raw(u, v) = static_cast<float>(gain * t);
+    }
+  auto read = [&](const Image& r) {  // X = R + c mean_v R, plus the dark level
+    Image x(kW, kH);
+    for (int u = 0; u < kW; ++u) {
+      double mean = 0.0;
+      for (int v = 0; v < kH; ++v) mean += static_cast<double>(r(u, v));
+      mean /= kH;
+      for (int v = 0; v < kH; ++v)
+        x(u, v) = static_cast<float>(static_cast<double>(r(u, v)) + kC * mean +
+                                     static_cast<double>(dark(u, v)));
+    }
+    return x;
+  };
+  const Image flat_read = read(flat), raw_read = read(raw);
+  RadiographFrames frames;
+  frames.dark = &dark;
+  frames.flat = &flat_read;
+  const Image plain = normalizeRadiograph(raw_read, frames, std::nullopt, ClampPolicy::kNone, "r")
+                          .image;
+  frames.column_crosstalk = kC;
+  const Image undone = normalizeRadiograph(raw_read, frames, std::nullopt, ClampPolicy::kNone, "r")
+                           .image;
+  double worst_plain = 0.0, worst_undone = 0.0;
+  for (int v = 0; v < kH; ++v)
+    for (int u = 0; u < kW; ++u) {
+      worst_plain = std::max(worst_plain, std::abs(static_cast<double>(plain(u, v) - truth(u, v))));
+      worst_undone =
+          std::max(worst_undone, std::abs(static_cast<double>(undone(u, v) - truth(u, v))));
+    }
+  EXPECT_GT(worst_plain, 1e-3);  // c (1 - t) of the column's mean shadow
+  EXPECT_LT(worst_undone, 1e-5);
 }
 
 }  // namespace

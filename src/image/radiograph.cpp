@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <vector>
 
 namespace xgauge {
 
@@ -23,6 +24,9 @@ void subtractPreviousLag(NormalizedRadiograph& out, const RadiographFrames& fram
          frames.previous->width(), frames.previous->height(), out.image.width(),
          out.image.height());
   Image previous = *frames.previous;
+  if (frames.dark && frames.column_crosstalk > 0.0 &&
+      previous.width() == frames.dark->width() && previous.height() == frames.dark->height())
+    previous = undoColumnCrosstalk(previous, *frames.dark, frames.column_crosstalk);
   if (frames.dark) {
     try {
       previous = flatFieldCorrectRepairing(previous, *frames.dark, *frames.flat, nullptr);
@@ -59,8 +63,19 @@ NormalizedRadiograph normalizeRadiograph(Image raw, const RadiographFrames& fram
   out.image = std::move(raw);
   if (frames.dark) {
     try {
-      out.image =
-          flatFieldCorrectRepairing(out.image, *frames.dark, *frames.flat, &out.repaired_pixels);
+      const bool crosstalk = frames.column_crosstalk > 0.0 &&
+                             out.image.width() == frames.dark->width() &&
+                             out.image.height() == frames.dark->height() &&
+                             frames.flat->width() == frames.dark->width() &&
+                             frames.flat->height() == frames.dark->height();
+      if (crosstalk)
+        out.image = flatFieldCorrectRepairing(
+            undoColumnCrosstalk(out.image, *frames.dark, frames.column_crosstalk), *frames.dark,
+            undoColumnCrosstalk(*frames.flat, *frames.dark, frames.column_crosstalk),
+            &out.repaired_pixels);
+      else
+        out.image =
+            flatFieldCorrectRepairing(out.image, *frames.dark, *frames.flat, &out.repaired_pixels);
     } catch (const Error& e) {
       fail("{} with its dark and flat frames: {}", name, e.message());
     }
@@ -88,6 +103,23 @@ NormalizedRadiograph normalizeRadiograph(Image raw, const RadiographFrames& fram
     for (float& p : out.lag_signal.pixels()) p *= scale;
   }
   if (clamp == ClampPolicy::kAtOne) clampToOne(out.image);
+  return out;
+}
+
+Image undoColumnCrosstalk(const Image& frame, const Image& dark, double c) {
+  XG_CHECK(frame.width() == dark.width() && frame.height() == dark.height(),
+           "a frame and its dark frame differ in size");
+  XG_CHECK(c >= 0.0 && c < 1.0, "column crosstalk out of range");
+  const int width = frame.width(), height = frame.height();
+  std::vector<double> mean(static_cast<size_t>(width), 0.0);
+  for (int v = 0; v < height; ++v)
+    for (int u = 0; u < width; ++u)
+      mean[static_cast<size_t>(u)] += static_cast<double>(frame(u, v)) - static_cast<double>(dark(u, v));
+  const double k = c / (1.0 + c) / height;
+  Image out = frame;
+  for (int v = 0; v < height; ++v)
+    for (int u = 0; u < width; ++u)
+      out(u, v) = static_cast<float>(static_cast<double>(frame(u, v)) - k * mean[static_cast<size_t>(u)]);
   return out;
 }
 

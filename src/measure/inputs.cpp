@@ -118,11 +118,15 @@ std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
   for (const RadiographSpec& spec : job.radiographs)
     if (!spec.previous.empty()) previous_frames.insert(spec.previous);
   std::vector<std::shared_ptr<const PreparedRadiograph>> out;
+  if (machine.column_crosstalk > 0.0)
+    spdlog::info("the detector's column crosstalk, {:.5f} +- {:.2g}, is undone on the raw frames",
+                 machine.column_crosstalk, machine.column_crosstalk_uncertainty);
   for (const RadiographSpec& spec : job.radiographs) {
     RadiographFrames given;
     if (!spec.dark.empty()) {
       given.dark = &frame(spec.dark);
       given.flat = &frame(spec.flat);
+      given.column_crosstalk = machine.column_crosstalk;
     }
     if (!spec.previous.empty()) {
       given.previous = &frame(spec.previous);

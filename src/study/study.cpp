@@ -311,6 +311,7 @@ std::shared_ptr<const PreparedRadiograph> PreparedShots::get(const RadiographSpe
         flat_ = readInputTiff(spec.flat, machine_, sha256_);
       frames.dark = &*dark_;
       frames.flat = &*flat_;
+      frames.column_crosstalk = machine_.column_crosstalk;
     }
     // A shot's previous frame (the one before it in the dataset's listing),
     // read raw for its lag.

@@ -13,9 +13,13 @@ DetectorFile loadDetectorFile(const std::filesystem::path& path) {
     out.lag_fraction = lag->at("value").number(0.0, 0.5);
     out.lag_fraction_uncertainty = lag->at("uncertainty").number(0.0, 0.5);
   }
+  if (auto crosstalk = root.find("crosstalk")) {
+    out.column_crosstalk = crosstalk->at("value").number(0.0, 0.2);
+    out.column_crosstalk_uncertainty = crosstalk->at("uncertainty").number(0.0, 0.2);
+  }
   if (auto bad = root.find("bad_pixels"))
     out.bad_pixels = path.parent_path() / bad->get<std::string>("file");
-  // The rest (candidates, inputs, crosstalk) is the record, not read.
+  // The rest (candidates, inputs) is the record, not read.
   root.json();
   return out;
 }

@@ -41,14 +41,17 @@ Machine Machine::fromConfig(const ConfigNode& node) {
     m.cy_px = 0.5 * m.rows;
   }
   if (auto lag = detector.find("lag_fraction")) m.lag_fraction = lag->number(0.0, 0.5);
-  // A characterised detector: its lag where the machine states none (the
-  // halo is read by the jobs, xray/detector_file.h).
+  // A characterised detector: its lag where the machine states none, and its
+  // column crosstalk (the halo is read by the jobs, xray/detector_file.h).
   if (auto name = detector.find("characterization")) {
     const DetectorFile file =
         loadDetectorFile(std::filesystem::path(node.file()).parent_path() / name->string());
     if (std::isnan(m.lag_fraction) && !std::isnan(file.lag_fraction))
       m.lag_fraction = file.lag_fraction,
       m.lag_fraction_uncertainty = file.lag_fraction_uncertainty;
+    if (!std::isnan(file.column_crosstalk))
+      m.column_crosstalk = file.column_crosstalk,
+      m.column_crosstalk_uncertainty = file.column_crosstalk_uncertainty;
   }
   m.description = node.get<std::string>("description", "");
   if (auto u = node.find("uncertainty")) {

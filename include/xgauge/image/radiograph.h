@@ -2,7 +2,8 @@
 // normalized intensity (1.0 where nothing attenuates, docs/conventions.md),
 // used by `xgauge normalize`, the measurement and both calibrations.
 //
-//   raw --(dark, flat: flat-field correction, bad pixels repaired)-->
+//   raw --(the panel's column crosstalk undone, when it is known)-->
+//       --(dark, flat: flat-field correction, bad pixels repaired)-->
 //       --(the previous frame's lag subtracted, when it is given: image/lag.h)-->
 //       --(divided by the mean of an open-beam white region, thesis eq. 3.9,
 //         docs/method.md)-->
@@ -37,6 +38,11 @@ struct RadiographFrames {
   std::string previous_name;  // its file, for messages
   double lag_fraction = std::numeric_limits<double>::quiet_NaN();
   double lag_fraction_uncertainty = 0.0;  // of a known lag_fraction (standard)
+  // The panel's column crosstalk c (xgauge characterize): every pixel reads
+  // its own signal plus c times its column's mean signal, X = R + c mean_v R.
+  // Undone on the dark-subtracted frames (image, flat, previous) before the
+  // flat-field correction; needs dark and flat (0: none).
+  double column_crosstalk = 0.0;
 };
 
 struct NormalizedRadiograph {
@@ -71,6 +77,12 @@ struct NormalizedRadiograph {
 NormalizedRadiograph normalizeRadiograph(Image raw, const RadiographFrames& frames,
                                          const std::optional<PixelRect>& white,
                                          ClampPolicy clamp, const std::string& name);
+
+// Undoes column crosstalk c on `frame` against `dark`: with X = R + c m(R),
+// m the mean over a column's rows, m(X) = (1 + c) m(R), so
+// R = X - c / (1 + c) m(X - dark) (the dark frame carries no signal and
+// stays as it is). Exact for that model; the caller checks the sizes.
+Image undoColumnCrosstalk(const Image& frame, const Image& dark, double c);
 
 // Thesis eq. 3.9's clamp: every value above 1 becomes 1.
 void clampToOne(Image& image);

@@ -1,7 +1,8 @@
 // The detector file a machine may name (`detector.characterization`,
 // relative to the machine file): what `xgauge characterize` measured of the
 // panel (docs/formats.md, "Detector file"). Calibrations and measurements
-// take the halo and the lag fraction from it where their job states none.
+// take the halo and the lag fraction from it where their job states none,
+// and undo its column crosstalk on every raw radiograph.
 #pragma once
 
 #include "xgauge/image/scatter.h"
@@ -16,6 +17,10 @@ struct DetectorFile {
   std::optional<ScatterModel> halo;  // "halo.scatter"
   double lag_fraction = std::numeric_limits<double>::quiet_NaN();
   double lag_fraction_uncertainty = std::numeric_limits<double>::quiet_NaN();
+  // "crosstalk": c of X = R + c * column mean of R, with its uncertainty
+  // (NaN: not characterised).
+  double column_crosstalk = std::numeric_limits<double>::quiet_NaN();
+  double column_crosstalk_uncertainty = std::numeric_limits<double>::quiet_NaN();
   std::filesystem::path bad_pixels;  // empty when none
 };
 

@@ -48,6 +48,10 @@ struct Machine {
   double cy_px = 512.0;
   std::string description;
   double lag_fraction = std::numeric_limits<double>::quiet_NaN();  // NaN: not stated
+  // The characterised detector's column crosstalk (its detector file's
+  // "crosstalk"), undone on raw radiographs (image/radiograph.h); 0: none.
+  double column_crosstalk = 0.0;
+  double column_crosstalk_uncertainty = 0.0;
   // Standard uncertainties a lab states for its machine (optional key
   // "uncertainty"; docs/formats.md): they enter every measurement's budget.
   double source_detector_distance_uncertainty_mm = kDefaultDistanceUncertaintyMm;

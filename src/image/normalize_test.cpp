@@ -139,11 +139,11 @@ TEST(NormalizeRadiograph, UndoesTheColumnCrosstalkOfACharacterisedPanel) {
   RadiographFrames frames;
   frames.dark = &dark;
   frames.flat = &flat_read;
-  const Image plain = normalizeRadiograph(raw_read, frames, std::nullopt, ClampPolicy::kNone, "r")
-                          .image;
+  const Image plain =
+      normalizeRadiograph(raw_read, frames, std::nullopt, ClampPolicy::kNone, "r").image;
   frames.column_crosstalk = kC;
-  const Image undone = normalizeRadiograph(raw_read, frames, std::nullopt, ClampPolicy::kNone, "r")
-                           .image;
+  const Image undone =
+      normalizeRadiograph(raw_read, frames, std::nullopt, ClampPolicy::kNone, "r").image;
   double worst_plain = 0.0, worst_undone = 0.0;
   for (int v = 0; v < kH; ++v)
     for (int u = 0; u < kW; ++u) {

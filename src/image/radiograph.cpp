@@ -24,8 +24,8 @@ void subtractPreviousLag(NormalizedRadiograph& out, const RadiographFrames& fram
          frames.previous->width(), frames.previous->height(), out.image.width(),
          out.image.height());
   Image previous = *frames.previous;
-  if (frames.dark && frames.column_crosstalk > 0.0 &&
-      previous.width() == frames.dark->width() && previous.height() == frames.dark->height())
+  if (frames.dark && frames.column_crosstalk > 0.0 && previous.width() == frames.dark->width() &&
+      previous.height() == frames.dark->height())
     previous = undoColumnCrosstalk(previous, *frames.dark, frames.column_crosstalk);
   if (frames.dark) {
     try {
@@ -114,12 +114,14 @@ Image undoColumnCrosstalk(const Image& frame, const Image& dark, double c) {
   std::vector<double> mean(static_cast<size_t>(width), 0.0);
   for (int v = 0; v < height; ++v)
     for (int u = 0; u < width; ++u)
-      mean[static_cast<size_t>(u)] += static_cast<double>(frame(u, v)) - static_cast<double>(dark(u, v));
+      mean[static_cast<size_t>(u)] +=
+          static_cast<double>(frame(u, v)) - static_cast<double>(dark(u, v));
   const double k = c / (1.0 + c) / height;
   Image out = frame;
   for (int v = 0; v < height; ++v)
     for (int u = 0; u < width; ++u)
-      out(u, v) = static_cast<float>(static_cast<double>(frame(u, v)) - k * mean[static_cast<size_t>(u)]);
+      out(u, v) =
+          static_cast<float>(static_cast<double>(frame(u, v)) - k * mean[static_cast<size_t>(u)]);
   return out;
 }
 

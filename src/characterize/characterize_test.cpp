@@ -135,6 +135,18 @@ TEST(Crosstalk, TheColumnStepBelowACoveredQuadrant) {
   EXPECT_NEAR(e.value, c, 3.0 * e.uncertainty);
   EXPECT_LT(e.uncertainty, 0.1 * c);
   EXPECT_THROW(estimateCrosstalk(Image(100, 100, 1.0f)), Error);
+  // A panel without crosstalk: zero or a small positive reading, never
+  // negative, over noise draws that read below zero about half the time.
+  int zero = 0;
+  for (uint64_t seed = 20; seed < 30; ++seed) {
+    Image none = r;
+    addNoise(none, 0.003, seed);
+    const Estimate z = estimateCrosstalk(none);
+    EXPECT_GE(z.value, 0.0);
+    EXPECT_LT(z.value, 3.0 * z.uncertainty + 1e-12);
+    zero += z.value == 0.0 ? 1 : 0;
+  }
+  EXPECT_GT(zero, 0);
 }
 
 TEST(BadPixels, DeadHotAndNoisyFromTheSeries) {

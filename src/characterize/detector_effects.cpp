@@ -186,7 +186,10 @@ Estimate estimateCrosstalk(const Image& c) {
   const double s2 = r.squaredNorm() / std::max(1, n - 4);
   const Eigen::MatrixXd cov = s2 * (a.transpose() * a).inverse();
   const double kappa = p(3), u_kappa = std::sqrt(cov(3, 3));
-  const double value = kappa / (1.0 - kappa);
+  // A panel without crosstalk reads kappa scattered about zero; c is not
+  // negative (the detector file's readers refuse it), so a negative reading
+  // is a crosstalk of zero with the reading's uncertainty.
+  const double value = std::max(0.0, kappa / (1.0 - kappa));
   return {value, u_kappa / ((1.0 - kappa) * (1.0 - kappa))};
 }
 

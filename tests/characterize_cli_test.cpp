@@ -11,6 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <fstream>
 #include <random>
 
 namespace xgauge {
@@ -117,6 +118,36 @@ TEST_F(Characterize, AStepThatCannotDecideFailsWithoutOutput) {
   const CommandResult m = run("characterize " + bad + " -o " + out("char2"));
   EXPECT_EQ(m.status, 1) << m.output;
   EXPECT_NE(m.output.find("egde"), std::string::npos) << m.output;
+}
+
+// The replica lab's characterisation session (`"characterization"` in a
+// recipe, lab/characterization.h): xgauge characterize reads the job it
+// writes and finds the halo, lag and column darkening the frames were made
+// with, the halo with the mirror border the replica's blur has.
+TEST_F(Characterize, TheReplicaLabsSessionGivesBackItsDetector) {
+  auto recipe = nlohmann::json::parse(std::ifstream(kRoot + "/tests/data/report_cuboid.json"));
+  recipe["machine"] = kRoot + "/tests/data/report_machine.json";
+  recipe["part"]["model"] = kRoot + "/parts/cuboid.json";
+  recipe["detector"]["scatter"] = {{"weight", 0.12}, {"sigma_px", 25.0}};
+  recipe["detector"]["noise"]["ghost_fraction"] = 0.004;
+  recipe["characterization"] = {{"frames", 4}};
+  const std::string file = write("recipe.json", recipe.dump(2));
+  const CommandResult sim = run("simulate " + file + " -o " + out("data") + " --quiet");
+  ASSERT_EQ(sim.status, 0) << sim.output;
+  const auto truth = nlohmann::json::parse(std::ifstream(out("data/truth.json")));
+  ASSERT_EQ(truth["characterization"]["job"], "characterization/characterize.json");
+  EXPECT_TRUE(fs::exists(out("data/characterization/darks/dark_003.tif")));
+  const CommandResult r =
+      run("characterize " + out("data/characterization/characterize.json") + " -o " + out("det"));
+  ASSERT_EQ(r.status, 0) << r.output;
+  const auto d = nlohmann::json::parse(std::ifstream(out("det/detector.json")));
+  const auto& s = d["halo"]["scatter"];
+  EXPECT_EQ(s["border"], "mirror") << r.output;
+  EXPECT_NEAR(s["weight"].get<double>(), 0.12, 0.01 * 0.12) << r.output;
+  EXPECT_NEAR(s["sigma_mm"].get<double>(), 25.0 * 0.4, 0.03 * 25.0 * 0.4) << r.output;
+  EXPECT_NEAR(d["lag_fraction"]["value"].get<double>(), 0.004, 1e-4) << r.output;
+  EXPECT_LT(d["crosstalk"]["value"].get<double>(),
+            3.0 * d["crosstalk"]["uncertainty"].get<double>() + 1e-12);
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include "xgauge/core/progress.h"
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/image/tiff.h"
+#include "xgauge/lab/characterization.h"
 #include "xgauge/lab/defect.h"
 #include "xgauge/lab/detector.h"
 #include "xgauge/lab/random.h"
@@ -274,6 +275,13 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
     progress.advance();
   }
   progress.finish();
+  std::optional<nlohmann::json> characterization;
+  if (recipe.characterization)
+    characterization = simulateCharacterization(
+        *recipe.characterization, machine, recipe.machine_file, pattern, acquisition.noise,
+        {acquisition.scatter, acquisition.scatter_weight, acquisition.scatter_sigma_px,
+         acquisition.column_darkening, acquisition.noise.quantize_16bit},
+        recipe.seed, folder / "characterization");
 
   // Ground truth, last: its presence marks a complete dataset.
   const PixelRect white =
@@ -332,6 +340,7 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
       {"transmission", transmissionJson(material, max_path_mm)},
       {"shots", shots}};
   if (!recipe.defects.empty()) truth["defects"] = defectsJson(recipe.defects);
+  if (characterization) truth["characterization"] = *characterization;
   writeFileAtomically(folder / "truth.json", truth.dump(2) + "\n");
 
   DatasetReport report;

@@ -134,6 +134,12 @@ Recipe Recipe::load(const std::filesystem::path& path) {
     recipe.white_region = PixelRect{r[0], r[1], r[2], r[3]};
   }
   if (auto defects = root.find("defects")) recipe.defects = readDefects(*defects, mesh);
+  if (auto c = root.find("characterization")) {
+    CharacterizationPlan plan;
+    plan.frames = static_cast<int>(c->get<double>("frames", 8.0));
+    if (plan.frames < 2 || plan.frames > 256) c->at("frames").fail("expected 2 to 256");
+    recipe.characterization = plan;
+  }
   return recipe;
 }
 

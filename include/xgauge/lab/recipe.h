@@ -40,6 +40,7 @@
 #include "xgauge/core/config.h"
 #include "xgauge/core/transform.h"
 #include "xgauge/image/image.h"
+#include "xgauge/lab/characterization.h"
 #include "xgauge/lab/defect.h"
 
 #include <filesystem>
@@ -72,6 +73,10 @@ struct Recipe {
   std::vector<ShotPlan> shots;
   std::optional<PixelRect> white_region;
   std::vector<Defect> defects;  // checked: each entirely inside the part at its true dimensions
+  // "characterization": {"frames": N}: the detector's characterisation
+  // session as well (lab/characterization.h), into the dataset's
+  // characterization/ folder.
+  std::optional<CharacterizationPlan> characterization;
 
   // Reads the recipe and plans the shots (random stage errors drawn from the
   // seed). Sections read by other modules are checked there.

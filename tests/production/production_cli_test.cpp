@@ -24,6 +24,8 @@
 #include <set>
 #include <sstream>
 #include <thread>
+#include <cstdlib>
+#include <random>
 
 namespace xgauge {
 namespace {
@@ -195,8 +197,20 @@ TEST_F(Production, InspectSurvivesKillNineAndMeasuresEveryPartOnceWithTheSameRes
   if (!g_postgres.empty()) return;  // the kill cycle runs on SQLite; claims are alike
   const std::string b = freshStore("killed.sqlite");
   const fs::path out = work() / "killed.out";
+  // Kills at random moments (each restart goes on where the last one
+  // stopped); the seed is printed so that a failure can be replayed with
+  // XGAUGE_KILL_SEED. At least three kills, and more (up to eight) until
+  // one has landed inside a measurement: otherwise the kills proved nothing
+  // (each part takes about a second).
+  const char* replay = std::getenv("XGAUGE_KILL_SEED");
+  const uint64_t seed = replay ? std::stoull(replay) : std::random_device{}();
+  std::mt19937_64 rng(seed);
+  std::uniform_int_distribution<int> moment_ms(100, 3000);
   int mid_measurement = 0;  // kills that left a part claimed, not recorded
-  for (int ms : {300, 1700, 2900}) {
+  std::string moments;
+  for (int kill = 0; kill < 8 && (kill < 3 || mid_measurement == 0); ++kill) {
+    const int ms = moment_ms(rng);
+    moments += fmt::format(" {} ms", ms);
     const pid_t pid = start("inspect " + inspectArgs(b, "out_b"), out);
     std::this_thread::sleep_for(std::chrono::milliseconds(ms));
     ::kill(pid, SIGKILL);
@@ -204,7 +218,7 @@ TEST_F(Production, InspectSurvivesKillNineAndMeasuresEveryPartOnceWithTheSameRes
     mid_measurement +=
         ResultStore::open(b)->connection().query("SELECT COUNT(*) FROM claims")[0].integer(0) > 0;
   }
-  // Otherwise the kills proved nothing (each part takes about a second).
+  SCOPED_TRACE(fmt::format("XGAUGE_KILL_SEED={}: killed at{}", seed, moments));
   EXPECT_GE(mid_measurement, 1);
   EXPECT_EQ(wait(start("inspect " + inspectArgs(b, "out_b"), out)), 0);
   const auto got = values(b, &count);

@@ -1,0 +1,164 @@
+#!/usr/bin/env python3
+"""Coverage of U on the second lab's measured parts (tools/lab2 `suite`):
+every part (prism jaw, wedge block, angle bracket, stepped shaft, each with
+the imperfections lab2 draws), from a translated pair and from the pair
+plus a rotated shot, from round starting values, on the machine's
+characterised detector with the material xgauge calibrated on it.
+
+For every machine folder that `lab2.py suite -o SUITE` wrote (and every
+runNN/ folder of `--runs`):
+
+1. `xgauge characterize` and `xgauge calibrate wedge` as
+   scripts/lab2_grid.py --characterize does (the detector file named by the
+   machine, its halo, lag and crosstalk in use);
+2. `xgauge measure` of each part's `job_pair.json` and
+   `job_pair_rotated.json` with that material and machine, the job's own
+   stated halo left out (the detector file's is the one measured); with
+   --stated, the jobs as lab2 wrote them (their drawn halo and the machine's
+   drawn lag, machine_stated.json) with the calibrated material.
+
+Writes OUT/coverage.json and prints, per part and pattern, the runs
+measured, the dimensions' pooled coverage (|error| <= U) and mean |error|,
+then the pooled coverage and each dimension's. Exit status 0 when every
+step ran (whatever its figures), 1 when one could not run, 2 on a usage
+error.
+
+Usage: scripts/lab2_coverage.py SUITE [--out out/lab2_coverage]
+       [--xgauge build/apps/xgauge/xgauge] [--threads 2] [--stated]
+       [--parts prism wedge bracket shaft] [--table]
+"""
+
+import argparse
+import json
+import sys
+from collections import defaultdict
+from pathlib import Path
+
+from lab2_grid import absolutize, calibrate, characterize, run
+
+ROOT = Path(__file__).resolve().parent.parent
+PATTERNS = ("job_pair.json", "job_pair_rotated.json")
+
+
+def measure_part(args, folder, job_file, out, machine, material):
+    job = absolutize(json.loads(job_file.read_text()), job_file.parent)
+    job["material"] = str(material)
+    if not args.stated:
+        job["machine"] = str(machine)
+        job.pop("scatter", None)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "job.json").write_text(json.dumps(job, indent=2))
+    rc, seconds = run([args.xgauge, "measure", str(out / "job.json"), "--truth",
+                       str(job_file.parent / "truth.json"), "-o", str(out / "result"), "--quiet",
+                       "-j", str(args.threads)], out / "measure.log")
+    row = {"rc": rc, "seconds": seconds}
+    try:
+        result = json.loads((out / "result" / "result.json").read_text())
+    except (OSError, ValueError):
+        row["reason"] = (out / "measure.log").read_text().strip().splitlines()[-1:]
+        return row
+    truth = json.loads((job_file.parent / "truth.json").read_text())["part"]["dimensions"]
+    row["status"] = result["status"]
+    row["failures"] = result.get("failures", [])
+    row["misfit"] = [c["misfit_ratio"] for c in result.get("fit_checks", [])]
+    dims = result.get("dimensions") or []
+    row["dimensions"] = {d["name"]: {"error": d["value_mm"] - truth[d["name"]],
+                                     "U": d.get("expanded_uncertainty")}
+                         for d in dims if d.get("free") and d["name"] in truth}
+    return row
+
+
+def tabulate(rows):
+    lines = ["| part | pattern | runs measured | dimensions within U | coverage | mean abs error mm |",
+             "|---|---|---|---|---|---|"]
+    by = defaultdict(list)
+    for (machine, part, pattern), row in rows.items():
+        by[(part, pattern)].append(row)
+    pooled, per_dim = [0, 0], defaultdict(lambda: [0, 0])
+    measured = total = 0
+    for (part, pattern), rs in sorted(by.items()):
+        inside = count = 0
+        errors = []
+        ok = 0
+        for r in rs:
+            total += 1
+            if r.get("status") != "measured":
+                continue
+            ok += 1
+            measured += 1
+            for name, d in r["dimensions"].items():
+                if d["U"] is None:
+                    continue
+                count += 1
+                inside += abs(d["error"]) <= d["U"]
+                errors.append(abs(d["error"]))
+                per_dim[f"{part}.{name}"][0] += abs(d["error"]) <= d["U"]
+                per_dim[f"{part}.{name}"][1] += 1
+        pooled[0] += inside
+        pooled[1] += count
+        cov = f"{100 * inside / count:.0f} %" if count else "–"
+        mean = f"{sum(errors) / len(errors):.4f}" if errors else "–"
+        lines.append(f"| {part} | {pattern.replace('job_', '').replace('.json', '')} | {ok} of {len(rs)} "
+                     f"| {inside} of {count} | {cov} | {mean} |")
+    lines.append("")
+    if pooled[1]:
+        lines.append(f"Pooled: {pooled[0]} of {pooled[1]} dimensions within U "
+                     f"({100 * pooled[0] / pooled[1]:.1f} %); {measured} of {total} runs measured.")
+    low = [f"{k} {100 * v[0] / v[1]:.0f} % ({v[0]}/{v[1]})" for k, v in sorted(per_dim.items())
+           if v[1] and v[0] / v[1] < 0.8]
+    lines.append("Dimensions below 80 %: " + (", ".join(low) if low else "none"))
+    return "\n".join(lines)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("suite", type=Path, help="the folder lab2.py suite wrote")
+    ap.add_argument("--out", type=Path, default=ROOT / "out" / "lab2_coverage")
+    ap.add_argument("--xgauge", default=str(ROOT / "build" / "apps" / "xgauge" / "xgauge"))
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--stated", action="store_true")
+    ap.add_argument("--parts", nargs="*", default=["prism", "wedge", "bracket", "shaft"])
+    ap.add_argument("--table", action="store_true")
+    args = ap.parse_args()
+    out_file = args.out / "coverage.json"
+    if args.table:
+        rows = {tuple(k.split("|")): v for k, v in json.loads(out_file.read_text()).items()}
+        print(tabulate(rows))
+        return 0
+    labs = sorted(p.parent for p in args.suite.rglob("lab2_truth.json"))
+    if not labs:
+        print(f"lab2_coverage: no machine folders in {args.suite}", file=sys.stderr)
+        return 2
+    rows = {}
+    ok = True
+    for lab in labs:
+        name = str(lab.relative_to(args.suite))
+        out = args.out / name
+        out.mkdir(parents=True, exist_ok=True)
+        ch = characterize(args, name, lab, out)
+        cal = calibrate(args, name, lab, out, out / "machine.json")
+        if ch["rc"] != 0 or cal["rc"] != 0:
+            print(f"{name}: characterize rc {ch['rc']}, calibrate rc {cal['rc']}: "
+                  f"{ch.get('reason') or cal.get('reason')}", flush=True)
+            ok = False
+            continue
+        for part in args.parts:
+            for pattern in PATTERNS:
+                job_file = lab / "measured" / part / pattern
+                if not job_file.exists():
+                    continue
+                row = measure_part(args, lab, job_file, out / part / pattern.replace(".json", ""),
+                                   out / "machine.json", out / "calibration" / "material.json")
+                rows[(name, part, pattern)] = row
+                d = row.get("dimensions", {})
+                inside = sum(1 for v in d.values() if v["U"] is not None and abs(v["error"]) <= v["U"])
+                print(f"{name} {part} {pattern}: {row.get('status', 'failed')} "
+                      f"{row.get('failures', '')} {inside}/{len(d)} within U "
+                      f"({row['seconds']:.0f} s)", flush=True)
+                out_file.write_text(json.dumps({"|".join(k): v for k, v in rows.items()}, indent=1))
+    print(tabulate(rows))
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -20,12 +20,12 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <cstdlib>
 #include <fstream>
+#include <random>
 #include <set>
 #include <sstream>
 #include <thread>
-#include <cstdlib>
-#include <random>
 
 namespace xgauge {
 namespace {

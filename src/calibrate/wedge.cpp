@@ -297,6 +297,7 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   frames.dark = dark ? &*dark : nullptr;
   frames.flat = flat ? &*flat : nullptr;
   frames.column_crosstalk = machine.column_crosstalk;
+  frames.bad_pixels = machine.bad_pixels.get();
   if (dark && machine.column_crosstalk > 0.0)
     spdlog::info("{}: the detector's column crosstalk, {:.5f}, is undone on the raw frames", name,
                  machine.column_crosstalk);

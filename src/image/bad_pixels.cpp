@@ -70,9 +70,15 @@ int64_t repairBadPixels(Image& image, const ImageT<uint8_t>& mask) {
 }
 
 Image flatFieldCorrectRepairing(const Image& raw, const Image& dark, const Image& flat,
-                                int64_t* repaired) {
+                                int64_t* repaired, const ImageT<uint8_t>* known) {
   requireSameSize(raw, "raw image", dark, "dark frame");
-  const ImageT<uint8_t> bad = findBadPixels(dark, flat);
+  ImageT<uint8_t> bad = findBadPixels(dark, flat);
+  if (known) {
+    if (known->width() != bad.width() || known->height() != bad.height())
+      fail("the detector's bad-pixel map is {}x{}, the image {}x{}", known->width(),
+           known->height(), bad.width(), bad.height());
+    for (size_t i = 0; i < bad.size(); ++i) bad.pixels()[i] |= known->pixels()[i];
+  }
   Image corrected(raw.width(), raw.height());
   for (size_t i = 0; i < raw.size(); ++i) {
     const double d = static_cast<double>(dark.pixels()[i]);

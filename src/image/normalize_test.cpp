@@ -1,3 +1,4 @@
+#include "xgauge/core/error.h"
 #include "xgauge/image/normalize.h"
 #include "xgauge/image/radiograph.h"
 
@@ -153,6 +154,31 @@ TEST(NormalizeRadiograph, UndoesTheColumnCrosstalkOfACharacterisedPanel) {
     }
   EXPECT_GT(worst_plain, 1e-3);  // c (1 - t) of the column's mean shadow
   EXPECT_LT(worst_undone, 1e-5);
+}
+
+// A hot pixel that saturates under the beam: its flat is above its dark, so
+// the dark and flat frames do not show it, but a characterised detector's
+// map does, and it is repaired from its neighbours.
+TEST(NormalizeRadiograph, RepairsTheCharacterisedDetectorsBadPixels) {
+  Image dark(6, 5, 100.0f), flat(6, 5, 1100.0f), raw(6, 5, 600.0f);
+  dark(2, 3) = 900.0f, flat(2, 3) = 1200.0f, raw(2, 3) = 1200.0f;  // clipped at 1200
+  RadiographFrames frames;
+  frames.dark = &dark;
+  frames.flat = &flat;
+  const NormalizedRadiograph plain =
+      normalizeRadiograph(raw, frames, std::nullopt, ClampPolicy::kNone, "r");
+  EXPECT_EQ(plain.repaired_pixels, 0);
+  EXPECT_FLOAT_EQ(plain.image(2, 3), 1.0f);  // reads open beam behind the part
+  ImageT<uint8_t> map(6, 5, 0);
+  map(2, 3) = 1;
+  frames.bad_pixels = &map;
+  const NormalizedRadiograph repaired =
+      normalizeRadiograph(raw, frames, std::nullopt, ClampPolicy::kNone, "r");
+  EXPECT_EQ(repaired.repaired_pixels, 1);
+  EXPECT_FLOAT_EQ(repaired.image(2, 3), 0.5f);
+  ImageT<uint8_t> wrong(5, 5, 0);
+  frames.bad_pixels = &wrong;
+  EXPECT_THROW(normalizeRadiograph(raw, frames, std::nullopt, ClampPolicy::kNone, "r"), Error);
 }
 
 }  // namespace

@@ -29,7 +29,8 @@ void subtractPreviousLag(NormalizedRadiograph& out, const RadiographFrames& fram
     previous = undoColumnCrosstalk(previous, *frames.dark, frames.column_crosstalk);
   if (frames.dark) {
     try {
-      previous = flatFieldCorrectRepairing(previous, *frames.dark, *frames.flat, nullptr);
+      previous = flatFieldCorrectRepairing(previous, *frames.dark, *frames.flat, nullptr,
+                                           frames.bad_pixels);
     } catch (const Error& e) {
       fail("{} with its dark and flat frames: {}", previous_name, e.message());
     }
@@ -72,10 +73,10 @@ NormalizedRadiograph normalizeRadiograph(Image raw, const RadiographFrames& fram
         out.image = flatFieldCorrectRepairing(
             undoColumnCrosstalk(out.image, *frames.dark, frames.column_crosstalk), *frames.dark,
             undoColumnCrosstalk(*frames.flat, *frames.dark, frames.column_crosstalk),
-            &out.repaired_pixels);
+            &out.repaired_pixels, frames.bad_pixels);
       else
-        out.image =
-            flatFieldCorrectRepairing(out.image, *frames.dark, *frames.flat, &out.repaired_pixels);
+        out.image = flatFieldCorrectRepairing(out.image, *frames.dark, *frames.flat,
+                                              &out.repaired_pixels, frames.bad_pixels);
     } catch (const Error& e) {
       fail("{} with its dark and flat frames: {}", name, e.message());
     }

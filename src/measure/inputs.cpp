@@ -127,6 +127,7 @@ std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
       given.dark = &frame(spec.dark);
       given.flat = &frame(spec.flat);
       given.column_crosstalk = machine.column_crosstalk;
+      given.bad_pixels = machine.bad_pixels.get();
     }
     if (!spec.previous.empty()) {
       given.previous = &frame(spec.previous);

@@ -312,6 +312,7 @@ std::shared_ptr<const PreparedRadiograph> PreparedShots::get(const RadiographSpe
       frames.dark = &*dark_;
       frames.flat = &*flat_;
       frames.column_crosstalk = machine_.column_crosstalk;
+      frames.bad_pixels = machine_.bad_pixels.get();
     }
     // A shot's previous frame (the one before it in the dataset's listing),
     // read raw for its lag.

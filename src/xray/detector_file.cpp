@@ -2,6 +2,8 @@
 
 #include "xgauge/core/config.h"
 
+#include <fmt/format.h>
+
 namespace xgauge {
 
 DetectorFile loadDetectorFile(const std::filesystem::path& path) {
@@ -22,6 +24,27 @@ DetectorFile loadDetectorFile(const std::filesystem::path& path) {
   // The rest (candidates, inputs) is the record, not read.
   root.json();
   return out;
+}
+
+ImageT<uint8_t> loadBadPixelMask(const std::filesystem::path& path, int columns, int rows) {
+  const ConfigNode root = ConfigNode::loadFile(path);
+  if (root.at("columns").integer(1, 65536) != columns)
+    root.at("columns").fail(fmt::format("the machine's detector has {} columns", columns));
+  if (root.at("rows").integer(1, 65536) != rows)
+    root.at("rows").fail(fmt::format("the machine's detector has {} rows", rows));
+  ImageT<uint8_t> mask(columns, rows, 0);
+  for (const char* kind : {"dead", "hot", "noisy"}) {
+    const ConfigNode list = root.at(kind);
+    for (size_t i = 0; i < list.size(); ++i) {
+      const ConfigNode pixel = list[i];
+      if (pixel.size() != 2) pixel.fail("expected [u, v]");
+      const auto u = static_cast<int>(pixel[0].integer(0, columns - 1));
+      const auto v = static_cast<int>(pixel[1].integer(0, rows - 1));
+      mask(u, v) = 1;
+    }
+  }
+  root.finish();
+  return mask;
 }
 
 std::optional<DetectorFile> detectorFileOf(const std::filesystem::path& machine_file) {

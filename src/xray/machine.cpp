@@ -52,6 +52,9 @@ Machine Machine::fromConfig(const ConfigNode& node) {
     if (!std::isnan(file.column_crosstalk))
       m.column_crosstalk = file.column_crosstalk,
       m.column_crosstalk_uncertainty = file.column_crosstalk_uncertainty;
+    if (!file.bad_pixels.empty())
+      m.bad_pixels = std::make_shared<const ImageT<uint8_t>>(
+          loadBadPixelMask(file.bad_pixels, m.columns, m.rows));
   }
   m.description = node.get<std::string>("description", "");
   if (auto u = node.find("uncertainty")) {

@@ -1,6 +1,10 @@
 #include "xgauge/xray/machine.h"
 
 #include <gtest/gtest.h>
+#include "xgauge/core/error.h"
+#include <filesystem>
+#include <unistd.h>
+#include <fstream>
 
 namespace xgauge {
 namespace {
@@ -75,6 +79,49 @@ TEST(Machine, AStatedLagHasAnUncertainty) {
   } catch (const Error& e) {
     EXPECT_EQ(e.where().key_path, "/uncertainty/lag_fraction");
   }
+}
+
+// A characterised machine: its detector file's crosstalk and bad-pixel map
+// come with it; a map of another size, or a pixel off the panel, names the
+// file and key.
+TEST(Machine, ACharacterisedDetectorBringsItsCrosstalkAndBadPixels) {
+  const auto dir = std::filesystem::temp_directory_path() /
+                   ("xgauge_machine_detector_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  auto put = [&](const std::string& name, const std::string& text) {
+    std::ofstream(dir / name) << text;
+    return (dir / name).string();
+  };
+  put("bad_pixels.json",
+      R"({"columns": 8, "rows": 6, "dead": [[1, 2]], "hot": [[7, 5]], "noisy": []})");
+  put("detector.json", R"({"crosstalk": {"value": 0.004, "uncertainty": 0.0002},
+    "lag_fraction": {"value": 0.003, "uncertainty": 0.0001},
+    "bad_pixels": {"file": "bad_pixels.json", "dead": 1, "hot": 1, "noisy": 0}})");
+  const std::string machine = put("machine.json", R"({"source_detector_distance_mm": 1000,
+    "detector": {"columns": 8, "rows": 6, "pixel_pitch_mm": [0.1, 0.1],
+                 "characterization": "detector.json"}})");
+  const Machine m = Machine::load(machine);
+  EXPECT_EQ(m.column_crosstalk, 0.004);
+  EXPECT_EQ(m.column_crosstalk_uncertainty, 0.0002);
+  EXPECT_EQ(m.lag_fraction, 0.003);
+  ASSERT_TRUE(m.bad_pixels);
+  int bad = 0;
+  for (const uint8_t b : m.bad_pixels->pixels()) bad += b;
+  EXPECT_EQ(bad, 2);
+  EXPECT_EQ((*m.bad_pixels)(1, 2), 1);
+  EXPECT_EQ((*m.bad_pixels)(7, 5), 1);
+  put("bad_pixels.json",
+      R"({"columns": 8, "rows": 6, "dead": [[8, 2]], "hot": [], "noisy": []})");
+  try {
+    Machine::load(machine);
+    ADD_FAILURE() << "a pixel off the panel was taken";
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("bad_pixels.json"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("/dead/0/0"), std::string::npos) << e.what();
+  }
+  put("bad_pixels.json", R"({"columns": 9, "rows": 6, "dead": [], "hot": [], "noisy": []})");
+  EXPECT_THROW(Machine::load(machine), Error);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(PoseConfig, EulerAndMatrixAgree) {

@@ -22,7 +22,11 @@ int64_t repairBadPixels(Image& image, const ImageT<uint8_t>& mask);
 // Flat-field correction (normalize.h) that repairs bad pixels instead of
 // failing on them: (raw - dark) / (flat - dark) where the pixel is good, the
 // neighbours' mean where it is bad. `repaired`, if given, receives the count.
+// `known`, if given, marks more bad pixels (a characterised detector's hot
+// and noisy ones, which the dark and flat frames do not show); its size must
+// be the image's (Error).
 Image flatFieldCorrectRepairing(const Image& raw, const Image& dark, const Image& flat,
-                                int64_t* repaired = nullptr);
+                                int64_t* repaired = nullptr,
+                                const ImageT<uint8_t>* known = nullptr);
 
 }  // namespace xgauge

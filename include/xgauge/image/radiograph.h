@@ -43,6 +43,9 @@ struct RadiographFrames {
   // Undone on the dark-subtracted frames (image, flat, previous) before the
   // flat-field correction; needs dark and flat (0: none).
   double column_crosstalk = 0.0;
+  // Pixels known to be bad (a characterised detector's map, 1 = bad),
+  // repaired like those the dark and flat frames show; null: none.
+  const ImageT<uint8_t>* bad_pixels = nullptr;
 };
 
 struct NormalizedRadiograph {

@@ -5,6 +5,7 @@
 // and undo its column crosstalk on every raw radiograph.
 #pragma once
 
+#include "xgauge/image/image.h"
 #include "xgauge/image/scatter.h"
 
 #include <filesystem>
@@ -26,6 +27,11 @@ struct DetectorFile {
 
 // Reads a detector file (Error naming the file and key).
 DetectorFile loadDetectorFile(const std::filesystem::path& path);
+// The bad-pixel map `bad_pixels.json` (written beside the detector file by
+// xgauge characterize: {columns, rows, dead, hot, noisy: [[u, v], ...]})
+// as a mask, 1 where a pixel is dead, hot or noisy. Error naming the file
+// and key when its size is not columns x rows or a pixel lies outside it.
+ImageT<uint8_t> loadBadPixelMask(const std::filesystem::path& path, int columns, int rows);
 // The detector file the machine file names, if it names one.
 std::optional<DetectorFile> detectorFileOf(const std::filesystem::path& machine_file);
 

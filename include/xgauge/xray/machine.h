@@ -34,6 +34,7 @@
 #include "xgauge/image/image.h"
 
 #include <filesystem>
+#include <memory>
 #include <limits>
 
 namespace xgauge {
@@ -52,6 +53,11 @@ struct Machine {
   // "crosstalk"), undone on raw radiographs (image/radiograph.h); 0: none.
   double column_crosstalk = 0.0;
   double column_crosstalk_uncertainty = 0.0;
+  // The characterised detector's bad pixels (its detector file's
+  // bad_pixels.json: dead, hot and noisy), repaired on every radiograph
+  // besides those the dark and flat frames show (image/bad_pixels.h); null:
+  // none named.
+  std::shared_ptr<const ImageT<uint8_t>> bad_pixels;
   // Standard uncertainties a lab states for its machine (optional key
   // "uncertainty"; docs/formats.md): they enter every measurement's budget.
   double source_detector_distance_uncertainty_mm = kDefaultDistanceUncertaintyMm;

@@ -1,5 +1,5 @@
-#include "xgauge/core/error.h"
 #include "xgauge/image/normalize.h"
+#include "xgauge/core/error.h"
 #include "xgauge/image/radiograph.h"
 
 #include <gtest/gtest.h>

@@ -1,10 +1,10 @@
 #include "xgauge/xray/machine.h"
 
 #include <gtest/gtest.h>
-#include "xgauge/core/error.h"
-#include <filesystem>
 #include <unistd.h>
+#include <filesystem>
 #include <fstream>
+#include "xgauge/core/error.h"
 
 namespace xgauge {
 namespace {
@@ -110,8 +110,7 @@ TEST(Machine, ACharacterisedDetectorBringsItsCrosstalkAndBadPixels) {
   EXPECT_EQ(bad, 2);
   EXPECT_EQ((*m.bad_pixels)(1, 2), 1);
   EXPECT_EQ((*m.bad_pixels)(7, 5), 1);
-  put("bad_pixels.json",
-      R"({"columns": 8, "rows": 6, "dead": [[8, 2]], "hot": [], "noisy": []})");
+  put("bad_pixels.json", R"({"columns": 8, "rows": 6, "dead": [[8, 2]], "hot": [], "noisy": []})");
   try {
     Machine::load(machine);
     ADD_FAILURE() << "a pixel off the panel was taken";

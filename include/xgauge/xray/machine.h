@@ -34,8 +34,8 @@
 #include "xgauge/image/image.h"
 
 #include <filesystem>
-#include <memory>
 #include <limits>
+#include <memory>
 
 namespace xgauge {
 

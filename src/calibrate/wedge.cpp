@@ -265,6 +265,65 @@ void combineCurveUncertainty(const std::string& name, WedgeCalibration& out) {
   }
 }
 
+namespace {
+
+// Step 7 of the ramp method, what the table cannot show: the curve's
+// change when the scatter's weight and width and the wedge's dimensions
+// move by their standard uncertainties (GUM, sensitivity by re-solving),
+// into out.influences. `geometry` and `image` are as the ramp was read
+// (transposed for a turned wedge), `normalized` the radiograph before the
+// scatter's removal.
+void rampInfluences(const WedgeCalibrationJob& job, const Machine& geometry,
+                    const Image& normalized, const Image& image, WedgeCalibration& out) {
+  const Machine& machine = job.machine;
+  const RadiographSpec& spec = job.radiograph;
+  const RampDetection& ramp = out.ramp;
+  out.step = "the curve's uncertainty";
+  const ExponentialSum material = out.material;
+  const double range = out.x_max_mm;
+  auto propagate = [&](const std::string& influence, double value, double u,
+                       const Image& shifted_image, double thickness, double length) {
+    if (!(u > 0.0)) return;
+    WedgeCalibration moved;
+    try {
+      curveFromRamp(job, geometry, shifted_image, ramp, thickness, length, moved);
+    } catch (const Error& e) {
+      fail("the calibration does not survive its {} moved by its standard uncertainty ({}): {}",
+           influence, u, e.message());
+    }
+    out.influences.push_back(
+        {influence, value, u, largestDifference(material, moved.material, range), moved.material});
+  };
+  const ScatterModel& scatter = out.scatter;
+  if (scatter.enabled()) {
+    // The radiograph without a scatter of another weight or width: the
+    // halo's removal (with its darkening) or the job's.
+    auto without = [&](double weight, double sigma_mm) {
+      Image removed;
+      if (out.halo) {
+        removed = out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
+      } else {
+        ScatterModel moved = scatter;
+        moved.weight = weight, moved.sigma_mm = sigma_mm;
+        removed = moved.remove(normalized, machine.pitch_u_mm, spec.white_region);
+      }
+      return out.turned ? transposed(removed) : removed;
+    };
+    propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
+              without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),
+              job.max_thickness_mm, job.ramp_length_mm);
+    propagate(kScatterWidthInfluence, scatter.sigma_mm, scatter.sigma_uncertainty_mm,
+              without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
+              job.max_thickness_mm, job.ramp_length_mm);
+  }
+  propagate("wedge max_thickness_mm", job.max_thickness_mm, job.max_thickness_uncertainty_mm, image,
+            job.max_thickness_mm + job.max_thickness_uncertainty_mm, job.ramp_length_mm);
+  propagate("wedge ramp_length_mm", job.ramp_length_mm, job.ramp_length_uncertainty_mm, image,
+            job.max_thickness_mm, job.ramp_length_mm + job.ramp_length_uncertainty_mm);
+}
+
+}  // namespace
+
 WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
   WedgeCalibration out;
   calibrateFromWedge(job, out);
@@ -404,55 +463,11 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
         "transposed radiograph ({})",
         name, along_columns.message());
   }
-  const RampDetection& ramp = out.ramp;
   out.table_uncertainty = out.fit.tableUncertainty();
 
-  // 7. What the table cannot show: the curve's change when the scatter's
-  // weight and width and the wedge's dimensions move by their standard
-  // uncertainties (GUM, sensitivity by re-solving), combined with the
-  // table's own.
-  out.step = "the curve's uncertainty";
-  const ExponentialSum material = out.material;
-  const double range = out.x_max_mm;
-  auto propagate = [&](const std::string& influence, double value, double u,
-                       const Image& shifted_image, double thickness, double length) {
-    if (!(u > 0.0)) return;
-    WedgeCalibration moved;
-    try {
-      curveFromRamp(job, geometry, shifted_image, ramp, thickness, length, moved);
-    } catch (const Error& e) {
-      fail("the calibration does not survive its {} moved by its standard uncertainty ({}): {}",
-           influence, u, e.message());
-    }
-    out.influences.push_back(
-        {influence, value, u, largestDifference(material, moved.material, range), moved.material});
-  };
-  const ScatterModel& scatter = out.scatter;
-  if (scatter.enabled()) {
-    // The radiograph without a scatter of another weight or width: the
-    // halo's removal (with its darkening) or the job's.
-    auto without = [&](double weight, double sigma_mm) {
-      Image removed;
-      if (out.halo) {
-        removed = out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
-      } else {
-        ScatterModel moved = scatter;
-        moved.weight = weight, moved.sigma_mm = sigma_mm;
-        removed = moved.remove(normalized, machine.pitch_u_mm, spec.white_region);
-      }
-      return out.turned ? transposed(removed) : removed;
-    };
-    propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
-              without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),
-              job.max_thickness_mm, job.ramp_length_mm);
-    propagate(kScatterWidthInfluence, scatter.sigma_mm, scatter.sigma_uncertainty_mm,
-              without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
-              job.max_thickness_mm, job.ramp_length_mm);
-  }
-  propagate("wedge max_thickness_mm", job.max_thickness_mm, job.max_thickness_uncertainty_mm, image,
-            job.max_thickness_mm + job.max_thickness_uncertainty_mm, job.ramp_length_mm);
-  propagate("wedge ramp_length_mm", job.ramp_length_mm, job.ramp_length_uncertainty_mm, image,
-            job.max_thickness_mm, job.ramp_length_mm + job.ramp_length_uncertainty_mm);
+  // 7. What the table cannot show: each influence moved by its standard
+  // uncertainty.
+  rampInfluences(job, geometry, normalized, image, out);
   combineCurveUncertainty(name, out);
   // The table's first row, on the curve's path axis after eq. 3.7.
   const double first =

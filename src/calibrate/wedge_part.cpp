@@ -109,6 +109,66 @@ double smallestExtent(const PartModel& model, const std::map<std::string, double
   return extent.minCoeff();
 }
 
+// Step 7, the curve's uncertainty: the table read again at the fitted pose
+// `theta` with each influence (the scatter's weight and width, each caliper
+// value) moved by its standard uncertainty, into out.influences.
+void knownWedgeInfluences(const WedgeCalibrationJob& job, const PartCalibrationJob& part_job,
+                          const Image& normalized, const std::vector<double>& theta,
+                          WedgeCalibration& out) {
+  const std::string name = job.radiograph.image.string();
+  const Machine& machine = job.machine;
+  out.step = "the curve's uncertainty";
+  const int terms = out.fit.best().terms;
+  auto propagate = [&](const std::string& influence, double value, double u,
+                       const MeasurementInputs& moved, const std::vector<double>& at) {
+    if (!(u > 0.0)) return;
+    try {
+      ForwardModel model(moved, out.material);
+      const RegisteredTable table = registeredTable(model, at, part_job.table_width_px);
+      const CurveOptions options{
+          .max_terms = terms,
+          .noise = table.noise,
+          .rate_floor_per_mm = job.rate_floor ? job.rate_floor->per_mm : 0.0};
+      const CurveFit fit = fitCurve(table.path_mm, table.transmission, options, name);
+      const ExponentialSum curve(fit.best().fitted);
+      out.influences.push_back(
+          {influence, value, u, largestDifference(out.material, curve, out.x_max_mm), curve});
+    } catch (const Error& e) {
+      fail("the calibration does not survive its {} moved by its standard uncertainty ({}): {}",
+           influence, u, e.message());
+    }
+  };
+  const ScatterModel& scatter = out.scatter;
+  if (scatter.enabled()) {
+    auto without = [&](double weight, double sigma_mm) {
+      if (out.halo) return out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
+      ScatterModel moved = scatter;
+      moved.weight = weight, moved.sigma_mm = sigma_mm;
+      return moved.remove(normalized, machine.pitch_u_mm, job.radiograph.white_region);
+    };
+    propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
+              knownWedgeInputs(
+                  job, without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),
+                  job.caliper),
+              theta);
+    propagate(kScatterWidthInfluence, scatter.sigma_mm, scatter.sigma_uncertainty_mm,
+              knownWedgeInputs(
+                  job, without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
+                  job.caliper),
+              theta);
+  }
+  // A dimension's value is in theta (the model's first entries, fixed or
+  // free): moved up, or down where up breaks its bounds or a constraint.
+  for (const auto& [dimension, value] : job.caliper) {
+    std::vector<double> moved = theta;
+    const auto i = static_cast<size_t>(job.model->dimensionIndex(dimension));
+    moved[i] = value + job.caliper_uncertainty_mm;
+    if (job.model->invalidity(std::span(moved).first(job.model->dimensions().size())))
+      moved[i] = value - job.caliper_uncertainty_mm;
+    propagate("wedge " + dimension, value, job.caliper_uncertainty_mm, *part_job.inputs, moved);
+  }
+}
+
 }  // namespace
 
 void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized,
@@ -216,58 +276,9 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
   theta.resize(static_cast<size_t>(ForwardModel(*part_job->inputs, out.material).size()));
   out.table_uncertainty = out.fit.tableUncertainty();
 
-  // 7. The curve's uncertainty: the table read again at the fitted pose with
-  // each influence moved by its standard uncertainty.
-  out.step = "the curve's uncertainty";
-  const int terms = out.fit.best().terms;
-  auto propagate = [&](const std::string& influence, double value, double u,
-                       const MeasurementInputs& moved, const std::vector<double>& at) {
-    if (!(u > 0.0)) return;
-    try {
-      ForwardModel model(moved, out.material);
-      const RegisteredTable table = registeredTable(model, at, part_job->table_width_px);
-      const CurveOptions options{
-          .max_terms = terms,
-          .noise = table.noise,
-          .rate_floor_per_mm = job.rate_floor ? job.rate_floor->per_mm : 0.0};
-      const CurveFit fit = fitCurve(table.path_mm, table.transmission, options, name);
-      const ExponentialSum curve(fit.best().fitted);
-      out.influences.push_back(
-          {influence, value, u, largestDifference(out.material, curve, out.x_max_mm), curve});
-    } catch (const Error& e) {
-      fail("the calibration does not survive its {} moved by its standard uncertainty ({}): {}",
-           influence, u, e.message());
-    }
-  };
-  const ScatterModel& scatter = out.scatter;
-  if (scatter.enabled()) {
-    auto without = [&](double weight, double sigma_mm) {
-      if (out.halo) return out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
-      ScatterModel moved = scatter;
-      moved.weight = weight, moved.sigma_mm = sigma_mm;
-      return moved.remove(normalized, machine.pitch_u_mm, job.radiograph.white_region);
-    };
-    propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
-              knownWedgeInputs(
-                  job, without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),
-                  job.caliper),
-              theta);
-    propagate(kScatterWidthInfluence, scatter.sigma_mm, scatter.sigma_uncertainty_mm,
-              knownWedgeInputs(
-                  job, without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
-                  job.caliper),
-              theta);
-  }
-  // A dimension's value is in theta (the model's first entries, fixed or
-  // free): moved up, or down where up breaks its bounds or a constraint.
-  for (const auto& [dimension, value] : job.caliper) {
-    std::vector<double> moved = theta;
-    const auto i = static_cast<size_t>(job.model->dimensionIndex(dimension));
-    moved[i] = value + job.caliper_uncertainty_mm;
-    if (job.model->invalidity(std::span(moved).first(job.model->dimensions().size())))
-      moved[i] = value - job.caliper_uncertainty_mm;
-    propagate("wedge " + dimension, value, job.caliper_uncertainty_mm, *part_job->inputs, moved);
-  }
+  // 7. The curve's uncertainty: each influence moved by its standard
+  // uncertainty.
+  knownWedgeInfluences(job, *part_job, normalized, theta, out);
   combineCurveUncertainty(name, out);
   out.material.setCalibratedRange(std::array<double, 2>{out.path_mm.front(), out.x_max_mm});
   part.material = out.material;  // what the outputs write

@@ -317,6 +317,7 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
   readTolerances(root, model, is_free, job);
   if (auto scatter = root.find("scatter")) job.scatter = ScatterModel::fromConfig(*scatter);
 
+  // Radiographs, in order: a reference names an earlier one.
   const ConfigNode list = root.at("radiographs");
   if (list.size() < 1) list.fail("at least one radiograph is needed");
   for (size_t i = 0; i < list.size(); ++i)

@@ -31,48 +31,48 @@ nlohmann::json traceJson(const std::vector<double>& trace) {
   return out;
 }
 
-}  // namespace
-
-nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResult& result) {
-  const MeasurementJob& job = model.job();
-  nlohmann::json dims = nlohmann::json::array();
-  for (const auto& d : result.dimensions) {
-    nlohmann::json item = {
-        {"name", d.name}, {"value_mm", d.value}, {"free", d.free}, {"unit", d.unit}};
-    if (d.free) {
-      item["expanded_uncertainty"] = d.expanded_uncertainty
-                                         ? nlohmann::json(*d.expanded_uncertainty)
-                                         : nlohmann::json(nullptr);
-      item["identifiable"] = d.expanded_uncertainty.has_value();
-    }
-    if (d.tolerance)
-      item["tolerance"] = {{"nominal", d.tolerance->nominal},
-                           {"lower", d.tolerance->lower},
-                           {"upper", d.tolerance->upper},
-                           {"source", d.tolerance->source}};
-    if (d.free) item["verified"] = d.verified;
-    if (const auto& s = d.substitution) {
-      const VerifiedDimension* v = model.inputs().verification->find(d.name);
-      item["verification"] = {
-          {"fitted_value", d.fitted_value},
-          {"bias", v->bias},
-          {"u_cal", v->u_cal},
-          {"u_p", v->u_p},
-          {"u_b", v->u_b},
-          {"u_w", s->u_w},
-          {"combined_standard_uncertainty", s->combined},
-          {"own_expanded_uncertainty", d.own_expanded_uncertainty
-                                           ? nlohmann::json(*d.own_expanded_uncertainty)
-                                           : nlohmann::json(nullptr)}};
-    }
-    if (d.decision) {
-      item["verdict"] = std::string(verdictName(d.decision->verdict));
-      item["cannot_decide"] = d.decision->cannot_decide;
-    }
-    dims.push_back(std::move(item));
+// One dimension as result.json lists it: its value, its uncertainty and
+// verdict where it is measured, a verification's substitution.
+nlohmann::json dimensionJson(const ForwardModel& model, const MeasuredDimension& d) {
+  nlohmann::json item = {
+      {"name", d.name}, {"value_mm", d.value}, {"free", d.free}, {"unit", d.unit}};
+  if (d.free) {
+    item["expanded_uncertainty"] =
+        d.expanded_uncertainty ? nlohmann::json(*d.expanded_uncertainty) : nlohmann::json(nullptr);
+    item["identifiable"] = d.expanded_uncertainty.has_value();
   }
+  if (d.tolerance)
+    item["tolerance"] = {{"nominal", d.tolerance->nominal},
+                         {"lower", d.tolerance->lower},
+                         {"upper", d.tolerance->upper},
+                         {"source", d.tolerance->source}};
+  if (d.free) item["verified"] = d.verified;
+  if (const auto& s = d.substitution) {
+    const VerifiedDimension* v = model.inputs().verification->find(d.name);
+    item["verification"] = {
+        {"fitted_value", d.fitted_value},
+        {"bias", v->bias},
+        {"u_cal", v->u_cal},
+        {"u_p", v->u_p},
+        {"u_b", v->u_b},
+        {"u_w", s->u_w},
+        {"combined_standard_uncertainty", s->combined},
+        {"own_expanded_uncertainty", d.own_expanded_uncertainty
+                                         ? nlohmann::json(*d.own_expanded_uncertainty)
+                                         : nlohmann::json(nullptr)}};
+  }
+  if (d.decision) {
+    item["verdict"] = std::string(verdictName(d.decision->verdict));
+    item["cannot_decide"] = d.decision->cannot_decide;
+  }
+  return item;
+}
+
+// The uncertainty budget: every free dimension's components, and the
+// measurable combinations.
+nlohmann::json uncertaintyJson(const UncertaintyBudget& uncertainty) {
   nlohmann::json budget = nlohmann::json::array();
-  for (const DimensionUncertainty& u : result.uncertainty.dimensions) {
+  for (const DimensionUncertainty& u : uncertainty.dimensions) {
     nlohmann::json components = nlohmann::json::array();
     for (const UncertaintyComponent& c : u.components)
       components.push_back({{"name", c.name},
@@ -89,7 +89,7 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                       {"components", components}});
   }
   nlohmann::json combinations = nlohmann::json::array();
-  for (const MeasurableCombination& c : result.uncertainty.combinations) {
+  for (const MeasurableCombination& c : uncertainty.combinations) {
     nlohmann::json terms = nlohmann::json::array();
     for (const auto& [name, coefficient] : c.terms)
       terms.push_back({{"dimension", name}, {"coefficient", coefficient}});
@@ -100,34 +100,37 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
     if (!c.name.empty()) item["name"] = c.name;
     combinations.push_back(std::move(item));
   }
-  const nlohmann::json uncertainty = {
-      {"coverage_factor", result.uncertainty.coverage_factor},
-      {"method", "GUM (JCGM 100) linear propagation; docs/method.md"},
-      {"level", result.uncertainty.level},
-      {"pixels", result.uncertainty.pixels},
-      {"dimensions", budget},
-      {"combinations", combinations},
-      {"notes", result.uncertainty.notes}};
-  nlohmann::json refinement = nullptr;
-  if (const auto& refined = result.uncertainty.refinement)
-    refinement = {{"model", "rate_scale"},
-                  {"rate_scale", refined->rate_scale},
-                  {"standard_uncertainty", refined->standard_uncertainty},
-                  {"prior_standard_uncertainty", refined->prior_standard_uncertainty},
-                  {"transmission_change", refined->transmission_change},
-                  {"at_path_mm", refined->at_path_mm},
-                  {"curve", [&] {
-                     // The curve as used: the file's uncertainty and moves
-                     // belong to the unscaled curve.
-                     nlohmann::json curve = model.materialOf(result.theta).toJson();
-                     curve.erase("uncertainty");
-                     curve["description"] =
-                         fmt::format("{}, every rate times 1 {:+.6f} (refined in situ)",
+  return {{"coverage_factor", uncertainty.coverage_factor},
+          {"method", "GUM (JCGM 100) linear propagation; docs/method.md"},
+          {"level", uncertainty.level},
+          {"pixels", uncertainty.pixels},
+          {"dimensions", budget},
+          {"combinations", combinations},
+          {"notes", uncertainty.notes}};
+}
+
+// The material refined in situ (null when it was not).
+nlohmann::json refinementJson(const ForwardModel& model, const MeasurementResult& result) {
+  const auto& refined = result.uncertainty.refinement;
+  if (!refined) return nullptr;
+  // The curve as used: the file's uncertainty and moves belong to the
+  // unscaled curve.
+  nlohmann::json curve = model.materialOf(result.theta).toJson();
+  curve.erase("uncertainty");
+  curve["description"] = fmt::format("{}, every rate times 1 {:+.6f} (refined in situ)",
                                      model.material().description(), refined->rate_scale);
-                     return curve;
-                   }()}};
+  return {{"model", "rate_scale"},
+          {"rate_scale", refined->rate_scale},
+          {"standard_uncertainty", refined->standard_uncertainty},
+          {"prior_standard_uncertainty", refined->prior_standard_uncertainty},
+          {"transmission_change", refined->transmission_change},
+          {"at_path_mm", refined->at_path_mm},
+          {"curve", curve}};
+}
+
+nlohmann::json regionsJson(const SelfCheck& check) {
   nlohmann::json regions = nlohmann::json::array();
-  for (const ResidualRegion& r : result.check.regions) {
+  for (const ResidualRegion& r : check.regions) {
     nlohmann::json item = {{"radiograph", r.radiograph},
                            {"centre_px", {r.centre_px.x(), r.centre_px.y()}},
                            {"box_px", r.box_px},
@@ -140,8 +143,12 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                                 : nlohmann::json(nullptr);
     regions.push_back(std::move(item));
   }
+  return regions;
+}
+
+nlohmann::json fitChecksJson(const SelfCheck& check) {
   nlohmann::json fits = nlohmann::json::array();
-  for (const RadiographCheck& c : result.check.radiographs)
+  for (const RadiographCheck& c : check.radiographs)
     fits.push_back({{"name", c.name},
                     {"noise_sigma", c.noise_sigma},
                     {"mean_abs_residual", c.mean_abs_residual},
@@ -150,8 +157,12 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                     {"shadow_area_mm2", c.shadow_area_mm2},
                     {"longest_path_mm", c.longest_path_mm},
                     {"below_range_fraction", c.below_range_fraction}});
-  bool toleranced = false;
-  for (const auto& d : result.dimensions) toleranced |= d.decision.has_value();
+  return fits;
+}
+
+// Each radiograph's pose, loss, roi and preparation (its lag, if any).
+nlohmann::json radiographsJson(const ForwardModel& model, const MeasurementResult& result) {
+  const MeasurementJob& job = model.job();
   nlohmann::json radiographs = nlohmann::json::array();
   for (size_t r = 0; r < result.radiographs.size(); ++r) {
     const auto& m = result.radiographs[r];
@@ -175,6 +186,10 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
       radiographs.back()["lag"] = std::move(lag);
     }
   }
+  return radiographs;
+}
+
+nlohmann::json stagesJson(const MeasurementResult& result) {
   nlohmann::json stages = nlohmann::json::array();
   for (const auto& s : result.stages)
     stages.push_back({{"name", s.name},
@@ -188,6 +203,17 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
                       {"loss_after", s.loss_after},
                       {"termination", s.termination},
                       {"trace", traceJson(s.trace)}});
+  return stages;
+}
+
+}  // namespace
+
+nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResult& result) {
+  const MeasurementJob& job = model.job();
+  nlohmann::json dims = nlohmann::json::array();
+  for (const auto& d : result.dimensions) dims.push_back(dimensionJson(model, d));
+  bool toleranced = false;
+  for (const auto& d : result.dimensions) toleranced |= d.decision.has_value();
   // The digests of the bytes the loader parsed (measure/inputs.h), so that
   // no input is read twice.
   nlohmann::json inputs = model.inputs().sha256;
@@ -211,17 +237,17 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
           {measured ? "dimensions" : "rejected_dimensions", dims},
           {"decision_rule",
            toleranced ? nlohmann::json(std::string(kDecisionRule)) : nlohmann::json(nullptr)},
-          {measured ? "uncertainty" : "rejected_uncertainty", uncertainty},
-          {"material_refinement", refinement},
+          {measured ? "uncertainty" : "rejected_uncertainty", uncertaintyJson(result.uncertainty)},
+          {"material_refinement", refinementJson(model, result)},
           {"warnings", result.check.warnings},
-          {"residual_regions", regions},
+          {"residual_regions", regionsJson(result.check)},
           {"region_share", result.check.region_share},
-          {"fit_checks", fits},
-          {"radiographs", radiographs},
+          {"fit_checks", fitChecksJson(result.check)},
+          {"radiographs", radiographsJson(model, result)},
           {"total_loss", result.total_loss},
           {"evaluations", result.evaluations},
           {"seconds", result.seconds},
-          {"stages", stages},
+          {"stages", stagesJson(result)},
           {"inputs_sha256", inputs}};
 }
 

@@ -399,38 +399,28 @@ void applyStudyLag(nlohmann::json& settings, nlohmann::json& machine,
   }
 }
 
-}  // namespace
+// Records, so that every run's job.json can be measured again by hand: the
+// study's machine and material, beside the runs, with their digests (and
+// the part's) among the inputs'.
+struct StudyRecords {
+  fs::path machine_file, material_file;
+};
 
-StudySummary runStudy(const StudyOptions& options) {
-  DatasetTruth truth = DatasetTruth::load(options.dataset / "truth.json");
-  const ConfigNode settings_node = ConfigNode::loadFile(options.settings);
-  nlohmann::json settings = settings_node.json();
-  applyStudyLag(settings, truth.machine, options.settings);
-  createOutputFolder(options.output / "runs");
-
-  // The part and the machine from the dataset, the material from the
-  // settings or fitted, each radiograph prepared once for every run.
-  StudyInputs inputs = prepareStudyInputs(truth, settings, options.settings);
-  // Without a scatter of their own, the runs take the one the material's
-  // calibration found, as a measurement job does (measure/inputs.cpp).
-  if (!settings.contains("scatter") && inputs.material_scatter)
-    spdlog::info("{}: the scatter its material's calibration found: weight {:.4f}, sigma {:.1f} mm{}",
-                 options.settings.string(), inputs.material_scatter->model.weight,
-                 inputs.material_scatter->model.sigma_mm,
-                 inputs.material_scatter->curves ? ", moved together with the curve in the budget"
-                                                 : "");
-  PreparedShots shots(inputs.machine);
-  // Records, so that every run's job.json can be measured again by hand.
-  const fs::path machine_file = options.output / "machine.json";
-  const fs::path material_file = options.output / "material.json";
+StudyRecords writeStudyRecords(const StudyOptions& options, const DatasetTruth& truth,
+                               StudyInputs& inputs) {
+  const StudyRecords records{options.output / "machine.json", options.output / "material.json"};
   const std::string machine_text = truth.machine.dump(2) + "\n";
   const std::string material_text = materialRecord(inputs).dump(2) + "\n";
-  writeFileAtomically(machine_file, machine_text);
-  writeFileAtomically(material_file, material_text);
+  writeFileAtomically(records.machine_file, machine_text);
+  writeFileAtomically(records.material_file, material_text);
   inputs.file_sha256[fs::absolute(truth.part_file).string()] = sha256Hex(readText(truth.part_file));
-  inputs.file_sha256[fs::absolute(machine_file).string()] = sha256Hex(machine_text);
-  inputs.file_sha256[fs::absolute(material_file).string()] = sha256Hex(material_text);
+  inputs.file_sha256[fs::absolute(records.machine_file).string()] = sha256Hex(machine_text);
+  inputs.file_sha256[fs::absolute(records.material_file).string()] = sha256Hex(material_text);
+  return records;
+}
 
+// The study's runs, the first `limit` of them; of a shard, every N-th.
+std::vector<Combination> selectRuns(const DatasetTruth& truth, const StudyOptions& options) {
   std::vector<Combination> runs = combinations(truth, options.combinations);
   if (options.limit > 0 && static_cast<size_t>(options.limit) < runs.size())
     runs.resize(static_cast<size_t>(options.limit));
@@ -442,15 +432,22 @@ StudySummary runStudy(const StudyOptions& options) {
       if (static_cast<int>(i % static_cast<size_t>(options.shard_count)) == options.shard_index - 1)
         mine.push_back(runs[i]);
     runs = std::move(mine);
-    if (runs.empty()) return {};
   }
+  return runs;
+}
 
-  // Every job first, checked against the part model (so a bad setting fails
-  // before any work); each is also written as a record of the run.
+// Every job first, checked against the part model (so a bad setting fails
+// before any work); each is also written as a record of the run. Sets
+// `free_dimensions` to the jobs' free dimensions.
+std::vector<nlohmann::json> studyJobs(const StudyOptions& options, const nlohmann::json& settings,
+                                      const DatasetTruth& truth, const StudyInputs& inputs,
+                                      const StudyRecords& records,
+                                      const std::vector<Combination>& runs,
+                                      std::vector<std::string>& free_dimensions) {
   std::vector<nlohmann::json> jobs;
-  std::vector<std::string> free_dimensions;
   for (const auto& c : runs) {
-    jobs.push_back(studyJob(settings, truth, c.shots, c.id, machine_file, material_file));
+    jobs.push_back(
+        studyJob(settings, truth, c.shots, c.id, records.machine_file, records.material_file));
     // A verification named relative to the settings file, as every run's
     // job.json records it: absolutely.
     if (const auto v = settings.find("verification"); v != settings.end() && v->is_string())
@@ -462,59 +459,81 @@ StudySummary runStudy(const StudyOptions& options) {
     root.finish();
     free_dimensions = job.free_dimensions;
   }
+  return jobs;
+}
 
-  StudySummary summary;
-  summary.dimensions = free_dimensions;
+// Everything one run needs but its own combination and job.
+struct RunContext {
+  const StudyOptions& options;
+  const DatasetTruth& truth;
+  const StudyInputs& inputs;
+  const std::vector<std::string>& free_dimensions;
+  PreparedShots& shots;
+  FileDigests& digests;
+};
+
+// One run: its earlier result where its fingerprint says that is still
+// what it would measure, else measured (again) into its folder.
+StudyRun studyRun(const RunContext& context, const Combination& combination,
+                  const nlohmann::json& job) {
+  const StudyOptions& options = context.options;
+  const fs::path folder = options.output / "runs" / combination.id;
+  const fs::path result_file = folder / "result.json";
+  const fs::path fingerprint_file = folder / "fingerprint.sha256";
+  const std::string fingerprint =
+      runFingerprint(job, context.truth, context.inputs, options.images, context.digests);
+  if (fs::exists(result_file)) {
+    if (readText(fingerprint_file) != fingerprint) {
+      spdlog::warn("run {}: measured with other settings or inputs; measuring again",
+                   combination.id);
+    } else {
+      try {
+        return readRunResult(result_file, combination.id, context.truth, context.free_dimensions);
+      } catch (const Error& e) {
+        spdlog::warn("run {}: cannot use the earlier result ({}); measuring again", combination.id,
+                     e.what());
+      }
+    }
+  }
+  createOutputFolder(folder);
+  // The fingerprint goes last: a run cut short is never taken as done.
+  std::error_code ignored;
+  fs::remove(fingerprint_file, ignored);
+  writeFileAtomically(folder / "job.json", job.dump(2) + "\n");
+  const MeasurementInputs run_inputs =
+      studyRunInputs(job, context.inputs, options.settings, context.shots);
+  ForwardModel model(run_inputs);
+  const MeasurementResult result = measure(model, model.start());
+  if (options.images) {
+    writeMeasurementOutputs(model, result, folder, true, nlohmann::json(context.truth.dimensions));
+  } else {
+    writeFileAtomically(result_file, measurementJson(model, result).dump(2) + "\n");
+  }
+  writeFileAtomically(fingerprint_file, fingerprint + "\n");
+  return readRunResult(result_file, combination.id, context.truth, context.free_dimensions);
+}
+
+// Every run, in parallel, with one progress bar for them all.
+void studyRuns(const RunContext& context, const std::vector<Combination>& runs,
+               const std::vector<nlohmann::json>& jobs, StudySummary& summary) {
   summary.runs.resize(runs.size());
   ProgressBar progress("study", static_cast<int64_t>(runs.size()));
   const bool progress_was = progressEnabled();
   setProgressEnabled(false);  // no bars from the runs themselves
   const auto level = spdlog::get_level();
   spdlog::set_level(spdlog::level::warn);
-  FileDigests digests;
   tbb::parallel_for(size_t{0}, runs.size(), [&](size_t i) {
-    const fs::path folder = options.output / "runs" / runs[i].id;
-    const fs::path result_file = folder / "result.json";
-    const fs::path fingerprint_file = folder / "fingerprint.sha256";
-    const std::string fingerprint = runFingerprint(jobs[i], truth, inputs, options.images, digests);
-    std::optional<StudyRun> run;
-    if (fs::exists(result_file)) {
-      if (readText(fingerprint_file) != fingerprint) {
-        spdlog::warn("run {}: measured with other settings or inputs; measuring again", runs[i].id);
-      } else {
-        try {
-          run = readRunResult(result_file, runs[i].id, truth, free_dimensions);
-        } catch (const Error& e) {
-          spdlog::warn("run {}: cannot use the earlier result ({}); measuring again", runs[i].id,
-                       e.what());
-        }
-      }
-    }
-    if (!run) {
-      createOutputFolder(folder);
-      // The fingerprint goes last: a run cut short is never taken as done.
-      std::error_code ignored;
-      fs::remove(fingerprint_file, ignored);
-      writeFileAtomically(folder / "job.json", jobs[i].dump(2) + "\n");
-      const MeasurementInputs run_inputs = studyRunInputs(jobs[i], inputs, options.settings, shots);
-      ForwardModel model(run_inputs);
-      const MeasurementResult result = measure(model, model.start());
-      if (options.images) {
-        writeMeasurementOutputs(model, result, folder, true, nlohmann::json(truth.dimensions));
-      } else {
-        writeFileAtomically(result_file, measurementJson(model, result).dump(2) + "\n");
-      }
-      writeFileAtomically(fingerprint_file, fingerprint + "\n");
-      run = readRunResult(result_file, runs[i].id, truth, free_dimensions);
-    }
-    summary.runs[i] = *run;
+    summary.runs[i] = studyRun(context, runs[i], jobs[i]);
     progress.advance();
   });
   spdlog::set_level(level);
   setProgressEnabled(progress_was);
   progress.finish();
+}
 
-  // Statistics, CSV and JSON.
+// The errors' statistics per dimension and overall; returns them per run
+// as CSV.
+std::string tabulateErrors(StudySummary& summary) {
   double sum_all = 0.0;
   size_t count_all = 0;
   std::string csv = "run,seconds";
@@ -543,7 +562,14 @@ StudySummary runStudy(const StudyOptions& options) {
     csv += "\n";
   }
   summary.mean_abs_mm_all = sum_all / static_cast<double>(std::max<size_t>(1, count_all));
-  // Coverage of the reported uncertainties.
+  std::sort(seconds.begin(), seconds.end());
+  summary.median_seconds = seconds[seconds.size() / 2];
+  return csv;
+}
+
+// Coverage of the reported uncertainties: per dimension, pooled, and per
+// measurable combination.
+void tabulateCoverage(StudySummary& summary) {
   auto add = [](CoverageFigures& c, double error, double u) {
     ++c.runs;
     c.mean_u += u, c.mean_abs += std::abs(error);
@@ -567,19 +593,36 @@ StudySummary runStudy(const StudyOptions& options) {
   for (auto& [name, c] : summary.coverage) finish(c);
   for (auto& [name, c] : summary.combination_coverage) finish(c);
   finish(summary.pooled);
-  std::sort(seconds.begin(), seconds.end());
-  summary.median_seconds = seconds[seconds.size() / 2];
-  // A shard's figures are a part of the study's: its files come from the
-  // run that gathers every shard.
-  if (options.shard_count == 1) writeFileAtomically(options.output / "study.csv", csv);
+}
+
+nlohmann::json coverageJson(const CoverageFigures& c) {
+  return nlohmann::json{{"runs_with_u", c.runs},
+                        {"mean_u_mm", c.mean_u},
+                        {"coverage", c.coverage},
+                        {"mean_normalised_error", c.mean_normalised},
+                        {"mean_abs_mm", c.mean_abs}};
+}
+
+nlohmann::json runJson(const StudyRun& run) {
+  nlohmann::json combination_errors = nlohmann::json::object();
+  for (const auto& [expression, eu] : run.combinations)
+    combination_errors[expression] = {{"error_mm", eu.first}, {"expanded_uncertainty", eu.second}};
+  nlohmann::json out = {{"id", run.id},
+                        {"status", run.measured() ? "measured" : "not measured"},
+                        {"failures", run.failures},
+                        {"seconds", run.seconds},
+                        {"error_mm", run.error_mm},
+                        {"expanded_uncertainty_mm", run.expanded_mm},
+                        {"combinations", combination_errors}};
+  if (run.rate_scale)
+    out["material_refinement"] = {{"rate_scale", run.rate_scale->first},
+                                  {"standard_uncertainty", run.rate_scale->second}};
+  return out;
+}
+
+// study.json: the figures per dimension and overall, and every run's.
+nlohmann::json studyJson(const StudyOptions& options, StudySummary& summary) {
   nlohmann::json per_dim = nlohmann::json::object();
-  auto coverageJson = [](const CoverageFigures& c) {
-    return nlohmann::json{{"runs_with_u", c.runs},
-                          {"mean_u_mm", c.mean_u},
-                          {"coverage", c.coverage},
-                          {"mean_normalised_error", c.mean_normalised},
-                          {"mean_abs_mm", c.mean_abs}};
-  };
   for (const auto& d : summary.dimensions) {
     per_dim[d] = {{"mean_abs_mm", summary.mean_abs_mm[d]}, {"max_abs_mm", summary.max_abs_mm[d]}};
     per_dim[d].update(coverageJson(summary.coverage[d]));
@@ -588,33 +631,56 @@ StudySummary runStudy(const StudyOptions& options) {
   for (const auto& [expression, c] : summary.combination_coverage)
     combos[expression] = coverageJson(c);
   nlohmann::json all_runs = nlohmann::json::array();
-  for (const auto& run : summary.runs) {
-    nlohmann::json combination_errors = nlohmann::json::object();
-    for (const auto& [expression, eu] : run.combinations)
-      combination_errors[expression] = {{"error_mm", eu.first},
-                                        {"expanded_uncertainty", eu.second}};
-    all_runs.push_back({{"id", run.id},
-                        {"status", run.measured() ? "measured" : "not measured"},
-                        {"failures", run.failures},
-                        {"seconds", run.seconds},
-                        {"error_mm", run.error_mm},
-                        {"expanded_uncertainty_mm", run.expanded_mm},
-                        {"combinations", combination_errors}});
-    if (run.rate_scale)
-      all_runs.back()["material_refinement"] = {
-          {"rate_scale", run.rate_scale->first},
-          {"standard_uncertainty", run.rate_scale->second}};
-  }
-  const nlohmann::json study_json = {{"dataset", options.dataset.string()},
-                                     {"combinations", options.combinations},
-                                     {"dimensions", per_dim},
-                                     {"mean_abs_mm", summary.mean_abs_mm_all},
-                                     {"max_abs_mm", summary.max_abs_mm_all},
-                                     {"pooled_coverage", coverageJson(summary.pooled)},
-                                     {"combinations_coverage", combos},
-                                     {"median_seconds", summary.median_seconds},
-                                     {"measured_runs", summary.measured_runs},
-                                     {"runs", all_runs}};
+  for (const auto& run : summary.runs) all_runs.push_back(runJson(run));
+  return {{"dataset", options.dataset.string()},
+          {"combinations", options.combinations},
+          {"dimensions", per_dim},
+          {"mean_abs_mm", summary.mean_abs_mm_all},
+          {"max_abs_mm", summary.max_abs_mm_all},
+          {"pooled_coverage", coverageJson(summary.pooled)},
+          {"combinations_coverage", combos},
+          {"median_seconds", summary.median_seconds},
+          {"measured_runs", summary.measured_runs},
+          {"runs", all_runs}};
+}
+
+}  // namespace
+
+StudySummary runStudy(const StudyOptions& options) {
+  DatasetTruth truth = DatasetTruth::load(options.dataset / "truth.json");
+  const ConfigNode settings_node = ConfigNode::loadFile(options.settings);
+  nlohmann::json settings = settings_node.json();
+  applyStudyLag(settings, truth.machine, options.settings);
+  createOutputFolder(options.output / "runs");
+
+  // The part and the machine from the dataset, the material from the
+  // settings or fitted, each radiograph prepared once for every run.
+  StudyInputs inputs = prepareStudyInputs(truth, settings, options.settings);
+  // Without a scatter of their own, the runs take the one the material's
+  // calibration found, as a measurement job does (measure/inputs.cpp).
+  if (!settings.contains("scatter") && inputs.material_scatter)
+    spdlog::info(
+        "{}: the scatter its material's calibration found: weight {:.4f}, sigma {:.1f} mm{}",
+        options.settings.string(), inputs.material_scatter->model.weight,
+        inputs.material_scatter->model.sigma_mm,
+        inputs.material_scatter->curves ? ", moved together with the curve in the budget" : "");
+  PreparedShots shots(inputs.machine);
+  const StudyRecords records = writeStudyRecords(options, truth, inputs);
+  const std::vector<Combination> runs = selectRuns(truth, options);
+  if (options.shard_count > 1 && runs.empty()) return {};
+  StudySummary summary;
+  const std::vector<nlohmann::json> jobs =
+      studyJobs(options, settings, truth, inputs, records, runs, summary.dimensions);
+  FileDigests digests;
+  studyRuns({options, truth, inputs, summary.dimensions, shots, digests}, runs, jobs, summary);
+
+  // Statistics, CSV and JSON.
+  const std::string csv = tabulateErrors(summary);
+  tabulateCoverage(summary);
+  // A shard's figures are a part of the study's: its files come from the
+  // run that gathers every shard.
+  if (options.shard_count == 1) writeFileAtomically(options.output / "study.csv", csv);
+  const nlohmann::json study_json = studyJson(options, summary);
   if (options.shard_count > 1) return summary;
   writeFileAtomically(options.output / "study.json", study_json.dump(2) + "\n");
   if (options.report)

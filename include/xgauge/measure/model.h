@@ -29,6 +29,11 @@
 // that folds, a vertex outside the beam) are a status: loss() returns nullopt
 // and infeasibility() says why. What an optimiser sees for them is decided by
 // the caller. Broken preconditions (a theta of the wrong size) abort.
+//
+// Defined by concept: model.cpp (construction, material, posing, simulated
+// radiographs, residuals, loss), model_parameters.cpp (the parameter
+// layout), model_scatter.cpp (the scatter), model_derivatives.cpp (the
+// Jacobian).
 #pragma once
 
 #include "xgauge/geometry/part_model.h"
@@ -196,36 +201,21 @@ class ForwardModel {
                       int radiograph, std::vector<int>& moving, std::vector<Vec3>& velocities);
 
  private:
+  // The parameter layout (model_parameters.cpp): "dim/<name>" for every
+  // dimension of the part, each radiograph's pose by its pattern, the
+  // refinement's rate scale.
+  void addDimensionParameters();
+  void addPoseParameters();
+  void addRateScale();
+  // The rate scale's bounds, in prior standard uncertainties (at most +-0.5).
+  static constexpr double kRateScaleReach = 6.0;
+
+  // Posing and simulating (model.cpp).
   // Poses the part for `radiograph` into world_vertices_; the reason when
   // the surface cannot be built or leaves the beam.
   std::optional<std::string> tryPose(std::span<const double> theta, int radiograph);
   WorldMesh posedMesh(std::span<const double> theta, int radiograph);
   WorldMesh worldMesh() const;
-  ScatterEstimate scatterOf(const WorldMesh& mesh, int radiograph, int level);
-  // The scatter estimate of a coarse render (a derivative image when
-  // `derivative`: its open level holds only the scatter's part).
-  ScatterEstimate spreadOf(const Image& coarse, int coarse_level, int radiograph, int level,
-                           bool derivative) const;
-  int scatterLevel(int level) const { return std::max(level, levelForWidth(128)); }
-  // The coarse render's pixels must be the area means of the fine image, as
-  // the scintillator blurs it: sampled at their centres only, an edge's share
-  // of the halo moves by up to half a coarse pixel, by a different amount at
-  // each position of the part (a transmission error of several 1e-4 per
-  // shot). The edges sampled 8 x 8 leave 1/16 of a coarse pixel; inside the
-  // path is smooth and one sample per pixel does (measure_test: within 1e-6
-  // of the exact blur, as with 4 x 4 and 16 x 16, at a fifth of the cost).
-  // That is for the stages whose own edges are refined (setEdgeSamples: the
-  // final stage, the budget, the self-checks). Before them the image's own
-  // edge pixels are point samples, whose error dwarfs a quarter of a coarse
-  // pixel's, and the edges take 2 x 2: at the pose searches' 256 px, where
-  // the coarse render refines nearly every pixel of the part, 8 x 8 made
-  // the scatter cost nine times the image it is added to.
-  RenderOptions scatterRenderOptions() const {
-    RenderOptions options;
-    options.samples_per_axis = 1;
-    options.edge_samples_per_axis = edge_samples_ > 0 ? 8 : 2;
-    return options;
-  }
   // n x n samples over `region`, the edges refined as setEdgeSamples says:
   // the same for the image and for the render with derivatives.
   RenderOptions renderOptions(int samples, const PixelRect& region) const;
@@ -239,9 +229,35 @@ class ForwardModel {
   // Rebuilds the table when theta's material differs from the current one.
   void useMaterialOf(std::span<const double> theta);
   void useMaterial(const ExponentialSum& material);  // keeps base_material_
-  void addRateScale();
-  // The rate scale's bounds, in prior standard uncertainties (at most +-0.5).
-  static constexpr double kRateScaleReach = 6.0;
+
+  // The scatter (model_scatter.cpp).
+  ScatterEstimate scatterOf(const WorldMesh& mesh, int radiograph, int level);
+  // The scatter estimate of a coarse render (a derivative image when
+  // `derivative`: its open level holds only the scatter's part).
+  ScatterEstimate spreadOf(const Image& coarse, int coarse_level, int radiograph, int level,
+                           bool derivative) const;
+  // Adds the scatter to `image`, the scatter-free render of `region`.
+  void addScatter(const WorldMesh& mesh, int radiograph, int level, const PixelRect& region,
+                  Image& image);
+  // scatterOf() and, into `rates`, the scatter of each of the `count`
+  // derivative images of a coarse render with these vertex velocities, on
+  // the same grid.
+  ScatterEstimate scatterWithRates(const WorldMesh& mesh, int radiograph, int level,
+                                   std::span<const Vec3> velocities, int count,
+                                   std::vector<ScatterEstimate>& rates);
+  int scatterLevel(int level) const { return std::max(level, levelForWidth(128)); }
+  // The coarse render's samples (why these: model_scatter.cpp).
+  RenderOptions scatterRenderOptions() const;
+
+  // The derivatives (model_derivatives.cpp): one radiograph's residuals and
+  // Jacobian rows appended (false where it cannot be posed), then the
+  // material's columns by central differences.
+  bool appendRadiographJacobian(std::span<const double> theta, std::span<const int> indices, int r,
+                                int level, int samples, std::vector<double>& out,
+                                std::vector<double>& jacobian);
+  bool addMaterialColumns(std::span<const double> theta, std::span<const int> indices, int level,
+                          int samples, std::span<const int> radiographs,
+                          std::span<const double> out, std::vector<double>& jacobian);
 
   const MeasurementInputs& inputs_;
   PartModel part_;  // this model's own copy: evaluating one is not thread-safe

@@ -191,6 +191,37 @@ nlohmann::json defectsInShotJson(const Machine& machine, std::span<const Defect>
   return out;
 }
 
+// truth.json's shots: name, file, pattern, pose, and each pattern's and
+// defect's own keys.
+nlohmann::json shotsJson(const Recipe& recipe, const Machine& machine) {
+  nlohmann::json shots = nlohmann::json::array();
+  for (const ShotPlan& shot : recipe.shots) {
+    nlohmann::json s = {{"name", shot.name},
+                        {"file", shot.name + ".tif"},
+                        {"pattern", shot.pattern},
+                        {"pose", poseToJson(shot.pose)}};
+    if (shot.pattern == "translated") {
+      s["reference"] = shot.reference;
+      s["distance_mm"] = shot.distance_mm;
+      s["axis"] = {shot.axis.x(), shot.axis.y(), shot.axis.z()};
+    }
+    if (shot.pattern == "rotated") s["nominal_angle_deg"] = shot.nominal_angle_deg;
+    if (!recipe.defects.empty())
+      s["defects"] = defectsInShotJson(machine, recipe.defects, shot.pose);
+    shots.push_back(s);
+  }
+  return shots;
+}
+
+// The dead pixels of the detector pattern, [[u, v], ...].
+nlohmann::json deadPixelsJson(const DetectorPattern& pattern) {
+  nlohmann::json dead = nlohmann::json::array();
+  for (int v = 0; v < pattern.height(); ++v)
+    for (int u = 0; u < pattern.width(); ++u)
+      if (pattern.dead(u, v)) dead.push_back({u, v});
+  return dead;
+}
+
 }  // namespace
 
 DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path& folder) {
@@ -292,26 +323,6 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
   nlohmann::json dims = nlohmann::json::object();
   for (size_t k = 0; k < model.dimensions().size(); ++k)
     dims[model.dimensions()[k].name] = values[k];
-  nlohmann::json shots = nlohmann::json::array();
-  for (const ShotPlan& shot : recipe.shots) {
-    nlohmann::json s = {{"name", shot.name},
-                        {"file", shot.name + ".tif"},
-                        {"pattern", shot.pattern},
-                        {"pose", poseToJson(shot.pose)}};
-    if (shot.pattern == "translated") {
-      s["reference"] = shot.reference;
-      s["distance_mm"] = shot.distance_mm;
-      s["axis"] = {shot.axis.x(), shot.axis.y(), shot.axis.z()};
-    }
-    if (shot.pattern == "rotated") s["nominal_angle_deg"] = shot.nominal_angle_deg;
-    if (!recipe.defects.empty())
-      s["defects"] = defectsInShotJson(machine, recipe.defects, shot.pose);
-    shots.push_back(s);
-  }
-  nlohmann::json dead = nlohmann::json::array();
-  for (int v = 0; v < pattern.height(); ++v)
-    for (int u = 0; u < pattern.width(); ++u)
-      if (pattern.dead(u, v)) dead.push_back({u, v});
   nlohmann::json truth = {
       {"recipe", recipe.file.string()},
       {"description", recipe.description},
@@ -336,9 +347,9 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
       {"white_region", {white.x, white.y, white.width, white.height}},
       {"dark", "dark.tif"},
       {"flat", "flat.tif"},
-      {"dead_pixels", dead},
+      {"dead_pixels", deadPixelsJson(pattern)},
       {"transmission", transmissionJson(material, max_path_mm)},
-      {"shots", shots}};
+      {"shots", shotsJson(recipe, machine)}};
   if (!recipe.defects.empty()) truth["defects"] = defectsJson(recipe.defects);
   if (characterization) truth["characterization"] = *characterization;
   writeFileAtomically(folder / "truth.json", truth.dump(2) + "\n");

@@ -290,6 +290,123 @@ std::pair<double, double> profileInterval(const SumAt& sumAt, const std::vector<
   return {side(-1), side(+1)};
 }
 
+// The weight's standard uncertainty at one width, from the least squares'
+// covariance of (a, b).
+double weightUncertaintyOf(const WidthFit& fit) {
+  const double s = fit.k.a + fit.k.b;
+  const Eigen::Vector2d gradient(-fit.k.b / (s * s), fit.k.a / (s * s));
+  return std::sqrt(std::max(0.0, gradient.dot(fit.covariance.topLeftCorner<2, 2>() * gradient)));
+}
+
+// A width of the grid and the weights the open beam allows there.
+struct AllowedWeights {
+  double sigma_px, low, high;
+};
+
+// The width between the grid's neighbours of its best point `best_at`, by
+// golden sections on ln sigma (14 steps); `best` if none fits better.
+template <typename FitAt>
+WidthFit refineWidth(const FitAt& fitAt, const std::vector<WidthFit>& grid, int best_at,
+                     const WidthFit& best) {
+  double lo = std::log(grid[static_cast<size_t>(best_at - 1)].sigma_px);
+  double hi = std::log(grid[static_cast<size_t>(best_at + 1)].sigma_px);
+  const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
+  auto at = [&](double t) { return fitAt(std::exp(t)); };
+  double t1 = hi - ratio * (hi - lo), t2 = lo + ratio * (hi - lo);
+  WidthFit f1 = at(t1), f2 = at(t2);
+  for (int i = 0; i < 14; ++i) {
+    if (f1.rms < f2.rms)
+      hi = t2, t2 = t1, f2 = f1, t1 = hi - ratio * (hi - lo), f1 = at(t1);
+    else
+      lo = t1, t1 = t2, f1 = f2, t2 = lo + ratio * (hi - lo), f2 = at(t2);
+  }
+  if (f1.rms < best.rms || f2.rms < best.rms) return f1.rms < f2.rms ? f1 : f2;
+  return best;
+}
+
+// No halo worth the name (searchWidth): a detector without scatter (or too
+// little to see), or a blur no wider than the narrowest width searched.
+// Fails when a width that explains the open beam as well allows a halo that
+// would change the shadow by more than kMaxUnseenEffect; otherwise `out`
+// gets no scatter and a third of that change as unseen_change.
+void noMeasurableHalo(const WidthFit& best, const std::vector<AllowedWeights>& allowed_weights,
+                      const Image& n, const std::vector<int>& open, const Image& normalized,
+                      double binned_pitch, const std::string& name, const HaloOptions& options,
+                      HaloFit& out) {
+  const Image smooth = gaussianBlur(n, 1.0);
+  double effect = 0.0, weight_at_effect = 0.0, sigma_mm = 0.0;
+  for (const AllowedWeights& allowed : allowed_weights) {
+    const double bound =
+        std::min(std::max(std::abs(allowed.low), std::abs(allowed.high)), options.max_weight);
+    const double change = bound * shadowChange(smooth, open, allowed.sigma_px);
+    if (change > effect)
+      effect = change, weight_at_effect = bound, sigma_mm = allowed.sigma_px * binned_pitch;
+  }
+  if (!(effect <= kMaxUnseenEffect))
+    fail(
+        "{}: the scatter's halo does not decide the scatter: no halo fits the open beam around "
+        "the part, and so does one of weight {:.3f} at sigma {:.3g} mm, which would change "
+        "the part's shadow by up to {:.3f} (the open beam is too small or too far from the "
+        "part to tell a halo that wide from the open level): give the job's \"scatter\"",
+        name, weight_at_effect, sigma_mm, effect);
+  spdlog::warn(
+      "{}: no measurable scatter halo (weight {:.4f} +- {:.4f} at sigma {:.3g} mm; of the "
+      "widths that fit as well, a weight of {:.4f} at {:.3g} mm would change the shadow most, "
+      "by {:.4f}): scatter left out, a third of that change counted in the curve's "
+      "uncertainty",
+      name, weightOf(best.k), weightUncertaintyOf(best), best.sigma_px * binned_pitch,
+      weight_at_effect, sigma_mm, effect);
+  out.column_darkening = -best.k.c / (best.k.a + best.k.b);
+  out.open_level = 1.0 / (best.k.a + best.k.b);
+  out.rms = best.rms;
+  out.unseen_change = effect / kProfileSigmas;
+  // Without a halo G(P) is 1 in the open beam: a + b is its level.
+  out.primary = solvePrimary(normalized, columnAttenuation(normalized),
+                             {best.k.a + best.k.b, 0.0, best.k.c}, 1.0, HaloBorder::kMirror);
+}
+
+// A scatter removed that was not there leaves the darkest paths below
+// zero: the open beam's halo was something else (Error).
+void checkPrimaryNotNegative(const Image& primary, double weight, double sigma_mm,
+                             const std::string& name) {
+  int64_t negative = 0;
+  for (const float p : primary.pixels()) negative += p < -kNegativePrimary;
+  const double fraction = static_cast<double>(negative) / static_cast<double>(primary.size());
+  if (fraction > kMaxNegativeFraction)
+    fail(
+        "{}: the scatter fitted to the open beam (weight {:.4f}, sigma {:.3g} mm) leaves {:.2f} % "
+        "of the radiograph below zero once removed: it is not the scatter of this shot; give the "
+        "job's \"scatter\"",
+        name, weight, sigma_mm, 100.0 * fraction);
+}
+
+// The other borders: one whose best width fits the open beam as well
+// (its S within kProfileSigmas^2 c rms^2 of the chosen one's) is not ruled
+// out by the shot, and the halo's uncertainty covers both (half their
+// difference, as a standard uncertainty).
+void widenForOtherBorders(const std::vector<std::vector<WidthFit>>& grids, size_t chosen,
+                          const WidthFit& best, size_t count,
+                          const std::vector<HaloBorder>& borders, double binned_pitch,
+                          const std::string& name, double& u_weight, double& u_log_sigma) {
+  auto sum = [&](const WidthFit& fit) { return fit.rms * fit.rms * static_cast<double>(count); };
+  const double correlation = best.correlation, weight = weightOf(best.k);
+  const double t = std::log(best.sigma_px);
+  const HaloBorder border = borders[chosen];
+  for (size_t b = 0; b < grids.size(); ++b) {
+    if (b == chosen) continue;
+    const WidthFit& other = grids[b][static_cast<size_t>(bestOf(grids[b]))];
+    const double excess = (sum(other) - sum(best)) / (correlation * best.rms * best.rms);
+    spdlog::info(
+        "{}: the halo with a {} border: weight {:.4f}, sigma {:.3g} mm, its open beam's residual "
+        "sum of squares {:.1f} (correlated) variances above the {} border's",
+        name, toString(borders[b]), weightOf(other.k), other.sigma_px * binned_pitch, excess,
+        toString(border));
+    if (!(excess <= kProfileSigmas * kProfileSigmas)) continue;
+    u_weight = std::hypot(u_weight, 0.5 * std::abs(weightOf(other.k) - weight));
+    u_log_sigma = std::hypot(u_log_sigma, 0.5 * std::abs(std::log(other.sigma_px) - t));
+  }
+}
+
 // The width's search and what follows from its best fit, shared by both
 // estimates: `fitAt(sigma_px, border)` fits (a, b, c) at one width (binned
 // pixels) over the pixels `open` (sorted) of `n`, the radiograph binned;
@@ -338,11 +455,6 @@ void searchWidth(const FitAtBorder& fitAtBorder, const Image& n, const std::vect
           fit.sigma_px * binned_pitch, toString(out.shadow));
   };
   checkPlausible(best, best_at != 0);
-  auto weightUncertainty = [](const WidthFit& fit) {
-    const double s = fit.k.a + fit.k.b;
-    const Eigen::Vector2d gradient(-fit.k.b / (s * s), fit.k.a / (s * s));
-    return std::sqrt(std::max(0.0, gradient.dot(fit.covariance.topLeftCorner<2, 2>() * gradient)));
-  };
   auto sum = [&](const WidthFit& fit) { return fit.rms * fit.rms * static_cast<double>(count); };
   // The weights the open beam allows: at every width of the grid whose
   // residual sum of squares is within kProfileSigmas^2 rms^2 of the best,
@@ -351,16 +463,13 @@ void searchWidth(const FitAtBorder& fitAtBorder, const Image& n, const std::vect
   // than the open beam is a near-uniform level over it, which trades with
   // the open level: a wide halo of any weight may then fit as well as none,
   // and the range says so.
-  struct AllowedWeights {
-    double sigma_px, low, high;
-  };
   auto allowedWeights = [&](const WidthFit& best_fit) {
     std::vector<AllowedWeights> allowed;
     const double limit = sum(best_fit) + kProfileSigmas * kProfileSigmas * best_fit.correlation *
                                              best_fit.rms * best_fit.rms;
     for (const WidthFit& fit : grid) {
       if (!(sum(fit) <= limit)) continue;
-      const double w = weightOf(fit.k), u = weightUncertainty(fit) * std::sqrt(fit.correlation);
+      const double w = weightOf(fit.k), u = weightUncertaintyOf(fit) * std::sqrt(fit.correlation);
       allowed.push_back({fit.sigma_px, w - kProfileSigmas * u, w + kProfileSigmas * u});
     }
     return allowed;
@@ -373,37 +482,9 @@ void searchWidth(const FitAtBorder& fitAtBorder, const Image& n, const std::vect
   // more than kMaxUnseenEffect (its weight's bound, at most max_weight: no
   // scintillator scatters more, times shadowChange at its width); a third of
   // the largest change counts in the curve's uncertainty.
-  if (best_at == 0 || weightOf(best.k) < std::max(0.003, 3.0 * weightUncertainty(best))) {
-    const Image smooth = gaussianBlur(n, 1.0);
-    double effect = 0.0, weight_at_effect = 0.0, sigma_mm = 0.0;
-    for (const AllowedWeights& allowed : allowedWeights(best)) {
-      const double bound =
-          std::min(std::max(std::abs(allowed.low), std::abs(allowed.high)), options.max_weight);
-      const double change = bound * shadowChange(smooth, open, allowed.sigma_px);
-      if (change > effect)
-        effect = change, weight_at_effect = bound, sigma_mm = allowed.sigma_px * binned_pitch;
-    }
-    if (!(effect <= kMaxUnseenEffect))
-      fail(
-          "{}: the scatter's halo does not decide the scatter: no halo fits the open beam around "
-          "the part, and so does one of weight {:.3f} at sigma {:.3g} mm, which would change "
-          "the part's shadow by up to {:.3f} (the open beam is too small or too far from the "
-          "part to tell a halo that wide from the open level): give the job's \"scatter\"",
-          name, weight_at_effect, sigma_mm, effect);
-    spdlog::warn(
-        "{}: no measurable scatter halo (weight {:.4f} +- {:.4f} at sigma {:.3g} mm; of the "
-        "widths that fit as well, a weight of {:.4f} at {:.3g} mm would change the shadow most, "
-        "by {:.4f}): scatter left out, a third of that change counted in the curve's "
-        "uncertainty",
-        name, weightOf(best.k), weightUncertainty(best), best.sigma_px * binned_pitch,
-        weight_at_effect, sigma_mm, effect);
-    out.column_darkening = -best.k.c / (best.k.a + best.k.b);
-    out.open_level = 1.0 / (best.k.a + best.k.b);
-    out.rms = best.rms;
-    out.unseen_change = effect / kProfileSigmas;
-    // Without a halo G(P) is 1 in the open beam: a + b is its level.
-    out.primary = solvePrimary(normalized, columnAttenuation(normalized),
-                               {best.k.a + best.k.b, 0.0, best.k.c}, 1.0, HaloBorder::kMirror);
+  if (best_at == 0 || weightOf(best.k) < std::max(0.003, 3.0 * weightUncertaintyOf(best))) {
+    noMeasurableHalo(best, allowedWeights(best), n, open, normalized, binned_pitch, name, options,
+                     out);
     return;
   }
   if (best_at == kGrid - 1)
@@ -411,20 +492,9 @@ void searchWidth(const FitAtBorder& fitAtBorder, const Image& n, const std::vect
         "{}: the scatter's halo does not decide its width: the open beam's residual is smallest "
         "at the end of the search, sigma = {:.3g} mm ({:.0f} px): give the job's \"scatter\"",
         name, best.sigma_px * binned_pitch, best.sigma_px * out.binning);
-  double lo = std::log(grid[static_cast<size_t>(best_at - 1)].sigma_px);
-  double hi = std::log(grid[static_cast<size_t>(best_at + 1)].sigma_px);
-  const double ratio = 0.5 * (std::sqrt(5.0) - 1.0);
-  auto at = [&](double t) { return fitAt(std::exp(t)); };
-  double t1 = hi - ratio * (hi - lo), t2 = lo + ratio * (hi - lo);
-  WidthFit f1 = at(t1), f2 = at(t2);
-  for (int i = 0; i < 14; ++i) {
-    if (f1.rms < f2.rms)
-      hi = t2, t2 = t1, f2 = f1, t1 = hi - ratio * (hi - lo), f1 = at(t1);
-    else
-      lo = t1, t1 = t2, f1 = f2, t2 = lo + ratio * (hi - lo), f2 = at(t2);
-  }
-  if (f1.rms < best.rms || f2.rms < best.rms) best = f1.rms < f2.rms ? f1 : f2;
+  best = refineWidth(fitAt, grid, best_at, best);
   checkPlausible(best, true);
+  auto at = [&](double t) { return fitAt(std::exp(t)); };
 
   // Uncertainties: the width's from the curvature of the residual sum of
   // squares S(ln sigma) (a change of S by 2 c rms^2 is one standard
@@ -448,10 +518,9 @@ void searchWidth(const FitAtBorder& fitAtBorder, const Image& n, const std::vect
   double lowest = HUGE_VAL, highest = -HUGE_VAL;
   for (const AllowedWeights& allowed : allowedWeights(best))
     lowest = std::min(lowest, allowed.low), highest = std::max(highest, allowed.high);
-  double u_weight = std::max(
-      std::hypot(weightUncertainty(best) * std::sqrt(correlation),
-                 0.5 * std::abs(weightOf(wider.k) - weightOf(narrower.k))),
-      (highest - lowest) / (2.0 * kProfileSigmas));
+  double u_weight = std::max(std::hypot(weightUncertaintyOf(best) * std::sqrt(correlation),
+                                        0.5 * std::abs(weightOf(wider.k) - weightOf(narrower.k))),
+                             (highest - lowest) / (2.0 * kProfileSigmas));
   const double sigma_mm = best.sigma_px * binned_pitch;
   // The profile of the loss over the width (one standard deviation: S within
   // c rms^2 of its least), rather than only its curvature at the optimum:
@@ -467,23 +536,8 @@ void searchWidth(const FitAtBorder& fitAtBorder, const Image& n, const std::vect
     u_log_sigma = std::max(u_log_sigma, std::max(t - t_low, t_high - t));
     u_weight = std::max(u_weight, std::max(std::abs(w_low - weight), std::abs(w_high - weight)));
   }
-  // The other borders: one whose best width fits the open beam as well
-  // (its S within kProfileSigmas^2 c rms^2 of the chosen one's) is not ruled
-  // out by the shot, and the halo's uncertainty covers both (half their
-  // difference, as a standard uncertainty).
-  for (size_t b = 0; b < grids.size(); ++b) {
-    if (b == chosen) continue;
-    const WidthFit& other = grids[b][static_cast<size_t>(bestOf(grids[b]))];
-    const double excess = (sum(other) - sum(best)) / (correlation * best.rms * best.rms);
-    spdlog::info(
-        "{}: the halo with a {} border: weight {:.4f}, sigma {:.3g} mm, its open beam's residual "
-        "sum of squares {:.1f} (correlated) variances above the {} border's",
-        name, toString(options.borders[b]), weightOf(other.k), other.sigma_px * binned_pitch,
-        excess, toString(border));
-    if (!(excess <= kProfileSigmas * kProfileSigmas)) continue;
-    u_weight = std::hypot(u_weight, 0.5 * std::abs(weightOf(other.k) - weight));
-    u_log_sigma = std::hypot(u_log_sigma, 0.5 * std::abs(std::log(other.sigma_px) - t));
-  }
+  widenForOtherBorders(grids, chosen, best, count, options.borders, binned_pitch, name, u_weight,
+                       u_log_sigma);
   if (!(u_log_sigma < 0.5) || !(u_weight < 0.5 * weight) || !(weight < 0.9))
     fail(
         "{}: the scatter's halo does not decide the scatter: weight {:.4f} +- {:.4f}, sigma "
@@ -502,17 +556,7 @@ void searchWidth(const FitAtBorder& fitAtBorder, const Image& n, const std::vect
   out.rms = best.rms;
   out.primary =
       solvePrimary(normalized, columnAttenuation(normalized), best.k, sigma_mm / pitch_mm, border);
-  // A scatter removed that was not there leaves the darkest paths below
-  // zero: the open beam's halo was something else.
-  int64_t negative = 0;
-  for (const float p : out.primary.pixels()) negative += p < -kNegativePrimary;
-  const double fraction = static_cast<double>(negative) / static_cast<double>(out.primary.size());
-  if (fraction > kMaxNegativeFraction)
-    fail(
-        "{}: the scatter fitted to the open beam (weight {:.4f}, sigma {:.3g} mm) leaves {:.2f} % "
-        "of the radiograph below zero once removed: it is not the scatter of this shot; give the "
-        "job's \"scatter\"",
-        name, weight, sigma_mm, 100.0 * fraction);
+  checkPrimaryNotNegative(out.primary, weight, sigma_mm, name);
 }
 
 // The fit over the open beam `open` (pixels of `n`, the radiograph binned

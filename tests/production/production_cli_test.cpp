@@ -11,6 +11,7 @@
 #include "../cli_support.h"
 #include "dfq_reader.h"
 #include "sql.h"
+#include "xgauge/core/error.h"
 #include "xgauge/core/manifest.h"
 #include "xgauge/production/store.h"
 
@@ -197,26 +198,45 @@ TEST_F(Production, InspectSurvivesKillNineAndMeasuresEveryPartOnceWithTheSameRes
   if (!g_postgres.empty()) return;  // the kill cycle runs on SQLite; claims are alike
   const std::string b = freshStore("killed.sqlite");
   const fs::path out = work() / "killed.out";
-  // Kills at random moments (each restart goes on where the last one
-  // stopped); the seed is printed so that a failure can be replayed with
-  // XGAUGE_KILL_SEED. At least three kills, and more (up to eight) until
-  // one has landed inside a measurement: otherwise the kills proved nothing
-  // (each part takes about a second).
+  // Three kills, each at a random moment within a measurement: once a part
+  // is claimed (polled every 20 ms), after a further 0 to 400 ms drawn from
+  // a seed that is printed (XGAUGE_KILL_SEED replays it). Each restart goes
+  // on where the last one stopped. Waiting for the claim rather than a fixed
+  // time keeps the kills inside measurements on a loaded machine, where
+  // inspect's start alone can take seconds.
   const char* replay = std::getenv("XGAUGE_KILL_SEED");
   const uint64_t seed = replay ? std::stoull(replay) : std::random_device{}();
   std::mt19937_64 rng(seed);
-  std::uniform_int_distribution<int> moment_ms(100, 3000);
+  std::uniform_int_distribution<int> extra_ms(0, 400);
+  auto claimed = [&] {
+    if (!fs::exists(b)) return false;
+    try {
+      return ResultStore::open(b)->connection().query("SELECT COUNT(*) FROM claims")[0].integer(0) >
+             0;
+    } catch (const Error&) {
+      return false;  // the store is being created
+    }
+  };
   int mid_measurement = 0;  // kills that left a part claimed, not recorded
   std::string moments;
-  for (int kill = 0; kill < 8 && (kill < 3 || mid_measurement == 0); ++kill) {
-    const int ms = moment_ms(rng);
-    moments += fmt::format(" {} ms", ms);
+  for (int kill = 0; kill < 3; ++kill) {
     const pid_t pid = start("inspect " + inspectArgs(b, "out_b"), out);
+    bool exited = false;
+    for (int waited = 0; waited < 60000 && !claimed(); waited += 20) {
+      int status = 0;
+      if (::waitpid(pid, &status, WNOHANG) == pid) {
+        exited = true;
+        break;
+      }
+      std::this_thread::sleep_for(std::chrono::milliseconds(20));
+    }
+    if (exited) break;  // every part done before a claim was seen
+    const int ms = extra_ms(rng);
+    moments += fmt::format(" claim + {} ms", ms);
     std::this_thread::sleep_for(std::chrono::milliseconds(ms));
     ::kill(pid, SIGKILL);
     wait(pid);
-    mid_measurement +=
-        ResultStore::open(b)->connection().query("SELECT COUNT(*) FROM claims")[0].integer(0) > 0;
+    mid_measurement += claimed();
   }
   SCOPED_TRACE(fmt::format("XGAUGE_KILL_SEED={}: killed at{}", seed, moments));
   EXPECT_GE(mid_measurement, 1);

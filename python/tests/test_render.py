@@ -116,8 +116,10 @@ def test_a_4096_render_is_not_copied_and_releases_the_gil():
     big = {"source_detector_distance_mm": 1000,
            "detector": {"columns": 4096, "rows": 4096, "pixel_pitch_mm": [0.05, 0.05]}}
     rendered, seconds, counted = run_beside_python(
+        # 8 x 8 samples a pixel keep the render near half a second on two
+        # cores (2 x 2 took under 0.1 s, too short to tell on a fast machine).
         lambda: xgauge.render(CUBOID, None, ((0, 0, 30), (0, 0, 400)), big, MATERIAL,
-                              samples=2))
+                              samples=8))
     image = rendered.image
     assert image.shape == (4096, 4096) and image.dtype == np.float32
     assert not image.flags.owndata and type(image.base).__name__ == "PyCapsule"

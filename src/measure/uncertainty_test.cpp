@@ -4,6 +4,7 @@
 // component against a measurement of radiographs taken with it changed,
 // identifiability on a part
 // with an exact degeneracy, residual regions where an image was changed.
+#include "xgauge/measure/gradient_check.h"
 #include "xgauge/measure/measure.h"
 
 #include "xgauge/core/error.h"
@@ -236,35 +237,18 @@ TEST_F(Uncertainty, TheFitsJacobianMatchesCentralDifferences) {
   std::vector<double> check;
   ASSERT_TRUE(model.residuals(theta, 0, 2, both, check));
   ASSERT_EQ(r, check);  // the same residuals, bit for bit
-  auto difference = [&](size_t i, double h) {
-    std::vector<double> at = theta, plus, minus, out;
-    at[i] += h;
-    EXPECT_TRUE(model.residuals(at, 0, 2, both, plus));
-    at[i] -= 2 * h;
-    EXPECT_TRUE(model.residuals(at, 0, 2, both, minus));
-    for (size_t m = 0; m < plus.size(); ++m) out.push_back((plus[m] - minus[m]) / (2 * h));
-    return out;
-  };
-  for (size_t k = 0; k < indices.size(); ++k) {
-    const auto i = static_cast<size_t>(indices[k]);
-    // Steps large against the float images' rounding, small against a pixel.
-    const std::vector<double> coarse = difference(i, 4e-3), fine = difference(i, 2e-3);
-    double scale = 0.0;
-    for (double v : fine) scale = std::max(scale, std::abs(v));
-    double e2 = 0.0, n2 = 0.0;
-    int left_out = 0;
-    for (size_t m = 0; m < r.size(); ++m) {
-      if (std::abs(coarse[m] - fine[m]) > 1e-3 * scale) {
-        ++left_out;
-        continue;
-      }
-      const double e = jacobian[m * indices.size() + k] - fine[m];
-      e2 += e * e, n2 += fine[m] * fine[m];
-    }
-    const std::string& name = model.parameters()[static_cast<int>(i)].name;
+  // The checker switches the edge refinement off for its renders and back
+  // on after (the render with derivatives does not refine).
+  model.setEdgeSamples(4);
+  const GradientCheck gradients = checkModelGradients(model, theta, indices, both);
+  EXPECT_EQ(model.edgeSamples(), 4);
+  model.setEdgeSamples(0);
+  ASSERT_EQ(gradients.columns.size(), indices.size());
+  for (const GradientColumn& c : gradients.columns) {
     // The float images round to about 1e-5 of a column here.
-    EXPECT_LT(std::sqrt(e2 / n2), 5e-3) << name;
-    EXPECT_LT(left_out, static_cast<int>(r.size()) / 100) << name;
+    EXPECT_LT(c.norm_error, 5e-3) << c.name;
+    EXPECT_LT(c.kinked, static_cast<long>(r.size()) / 100) << c.name;
+    EXPECT_GT(c.pixels, static_cast<long>(r.size()) / 2) << c.name;
   }
   {
     // With the scatter modelled too: its value comes from the same

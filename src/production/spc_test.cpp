@@ -6,6 +6,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cstdio>
+
 #include <random>
 
 namespace xgauge {
@@ -143,6 +146,32 @@ TEST(Spc, ANormalProcessRaisesFewFalseAlarmsAndADriftIsCaught) {
   EXPECT_LE(before, 8u);
   // A drift of 2/3 sigma per part is flagged within a few parts.
   EXPECT_LT(first_after, 119u + 8u);
+}
+
+// The count of false alarms a stable process raises over the 119 parts
+// before a drift, with limits from its first 100 (the acceptance lot's
+// set-up), over 2000 series: the figure an inspected lot's count is judged
+// against (this seed: mean 2.68, median 2, 95th percentile 6).
+TEST(Spc, FalseAlarmsOfAStableProcessOver119Parts) {
+  std::mt19937_64 rng(4747);
+  std::normal_distribution<double> noise(0.0, 1.0);
+  std::vector<size_t> counts;
+  for (int series = 0; series < 2000; ++series) {
+    std::vector<double> x(119);
+    for (double& v : x) v = noise(rng);
+    const ControlLimits l = controlLimits(std::vector<double>(x.begin(), x.begin() + 100));
+    counts.push_back(applyRules(x, l, allRules()).size());
+  }
+  std::sort(counts.begin(), counts.end());
+  double mean = 0.0;
+  for (size_t c : counts) mean += static_cast<double>(c) / static_cast<double>(counts.size());
+  const size_t p95 = counts[counts.size() * 95 / 100];
+  std::printf("false alarms over 119 parts: mean %.2f, median %zu, 95th percentile %zu\n", mean,
+              counts[counts.size() / 2], p95);
+  EXPECT_GT(mean, 2.0);
+  EXPECT_LT(mean, 6.0);
+  EXPECT_GE(p95, 5u);
+  EXPECT_LE(p95, 12u);
 }
 
 TEST(Spc, QuantilesMatchTables) {

@@ -401,7 +401,7 @@ MeasurementResult fitFrom(ForwardModel& model, std::vector<double> theta,
                           const MeasureOptions& options, const Schedule& schedule, uint64_t seed,
                           MeasurementResult result) {
   const MeasurementJob& job = model.job();
-  Runner runner(model, theta, result, seed);
+  Runner runner(model, theta, result, seed, true, options.on_stage);
   // 2-3. Everything together.
   fitJointly(model, theta, runner, schedule, options);
 
@@ -478,7 +478,7 @@ void tryCandidates(ForwardModel& model, const std::vector<double>& searched_thet
     std::vector<double> theta = searched_theta;
     MeasurementResult mirrored = searched;
     model.setEdgeSamples(0);  // the pose stages' sampling (the joint fit refined the edges)
-    Runner runner(model, theta, mirrored, seed);
+    Runner runner(model, theta, mirrored, seed, true, options.on_stage);
     for (PoseCandidate& m :
          mirroredCandidates(model, searched_theta, r,
                             poseStage("", ps.local, model.poseIndices(r), r, model), runner))
@@ -500,7 +500,7 @@ void tryCandidates(ForwardModel& model, const std::vector<double>& searched_thet
       setPose(model, theta, r, list[k].pose);
       MeasurementResult stages = mirrored;
       model.setEdgeSamples(0);
-      Runner finer(model, theta, stages, seed);
+      Runner finer(model, theta, stages, seed, true, options.on_stage);
       refinePoseFiner(model, finer, ps, r);
       MeasurementResult next = fitFrom(model, theta, options, schedule, seed, stages);
       evaluations += next.evaluations - mirrored.evaluations;
@@ -531,7 +531,7 @@ MeasurementResult runPipeline(ForwardModel& model, std::vector<double> theta,
         "infeasible points",
         *why);
   MeasurementResult searched;
-  Runner runner(model, theta, searched, seed);
+  Runner runner(model, theta, searched, seed, true, options.on_stage);
 
   // 1. Each radiograph's pose alone, the part at its starting dimensions.
   std::vector<std::vector<PoseCandidate>> candidates(static_cast<size_t>(model.radiographCount()));

@@ -16,6 +16,7 @@ namespace xgauge {
 void Runner::report(const StageReport& stage) {
   result_.stages.push_back(stage);
   result_.evaluations += stage.evaluations;
+  if (on_stage_) on_stage_(stage);
 }
 
 double Runner::run(const StagePlan& plan) {
@@ -77,8 +78,7 @@ double Runner::run(const StagePlan& plan) {
   spdlog::info("{}: loss {:.6g} -> {:.6g} in {} evaluations, {:.2f} s ({})", plan.name,
                report.loss_before, report.loss_after, report.evaluations, report.seconds,
                report.termination);
-  result_.stages.push_back(report);
-  result_.evaluations += report.evaluations;
+  this->report(report);
   return report.loss_after;
 }
 

@@ -9,6 +9,7 @@
 #include "xgauge/measure/schedule.h"
 #include "xgauge/optimize/minimize.h"
 
+#include <functional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -34,9 +35,16 @@ struct StagePlan {
 class Runner {
  public:
   // `progress`: a progress bar per stage (not for stages run side by side).
+  // `on_stage` (may be empty) is called as each stage's report is added;
+  // side runners (refineEach) get none: their reports reach it in order.
   Runner(ForwardModel& model, std::vector<double>& theta, MeasurementResult& result, uint64_t seed,
-         bool progress = true)
-      : model_(model), theta_(theta), result_(result), seed_(seed), progress_(progress) {}
+         bool progress = true, std::function<void(const StageReport&)> on_stage = {})
+      : model_(model),
+        theta_(theta),
+        result_(result),
+        seed_(seed),
+        progress_(progress),
+        on_stage_(std::move(on_stage)) {}
 
   uint64_t seed() const { return seed_; }
 
@@ -59,6 +67,7 @@ class Runner {
   MeasurementResult& result_;
   uint64_t seed_;
   bool progress_;
+  std::function<void(const StageReport&)> on_stage_;
   std::vector<std::pair<double, std::vector<double>>>* record_ = nullptr;
 };
 

@@ -251,9 +251,11 @@ nlohmann::json measurementJson(const ForwardModel& model, const MeasurementResul
           {"inputs_sha256", inputs}};
 }
 
-MeasurementWithPictures measureWithPictures(ForwardModel& model) {
+MeasurementWithPictures measureWithPictures(ForwardModel& model,
+                                            std::function<void(const StageReport&)> on_stage) {
   MeasureOptions options;
   options.full_size_losses = false;
+  options.on_stage = std::move(on_stage);
   MeasurementWithPictures out{measure(model, model.start(), options), {}};
   out.simulated = simulateRadiographs(model, out.result.theta);
   takeFullSizeLosses(model, out.simulated, out.result);

@@ -1,21 +1,18 @@
-// Consumer of the installed xgauge library (see CMakeLists.txt): loads a
-// cuboid part model, builds its mesh at the nominal dimensions and checks
-// what has a closed-form answer: a closed outward mesh, the volume
-// size_x * size_y * size_z and the bounding box +-size/2. Exit status 0 when
-// every check passes.
-#include "xgauge/core/error.h"
-#include "xgauge/geometry/mesh.h"
-#include "xgauge/geometry/part_model.h"
+// Consumer of the installed xgauge library (see CMakeLists.txt): measures a
+// job through the front door, xgauge/xgauge.h, the only header it may use,
+// and checks what the virtual lab's truth tells: the fit is a measurement,
+// every measured dimension lies within 0.05 mm of its true value, the
+// result's JSON and reports are there, a stage callback ran, and bad
+// options and a missing job come back as failures with their reasons.
+// Exit status 0 when every check passes.
+//   xgauge_consumer JOB TRUTH OUTPUT_FOLDER
 #include "xgauge/version.h"
+#include "xgauge/xgauge.h"
 
-#include <algorithm>
 #include <cmath>
-#include <cstddef>
 #include <cstdio>
 #include <cstring>
-#include <exception>
 #include <string>
-#include <vector>
 
 namespace {
 
@@ -26,53 +23,59 @@ void check(bool ok, const std::string& what) {
   if (!ok) ++failures;
 }
 
-bool near(double a, double b) { return std::abs(a - b) <= 1e-9 * std::max(1.0, std::abs(b)); }
-
 }  // namespace
 
 int main(int argc, char** argv) {
-  if (argc != 2) {
-    std::fprintf(stderr, "usage: %s parts/cuboid.json\n", argv[0]);
+  if (argc != 4) {
+    std::fprintf(stderr, "usage: %s JOB TRUTH OUTPUT_FOLDER\n", argv[0]);
     return 2;
   }
-  try {
-    std::printf("xgauge %s (package version %s)\n", XGAUGE_VERSION_STRING, XGAUGE_PACKAGE_VERSION);
-    check(std::strcmp(XGAUGE_VERSION_STRING, XGAUGE_PACKAGE_VERSION) == 0,
-          "xgauge/version.h matches the CMake package version");
+  std::printf("xgauge %s (package version %s)\n", XGAUGE_VERSION_STRING, XGAUGE_PACKAGE_VERSION);
+  check(std::strcmp(XGAUGE_VERSION_STRING, XGAUGE_PACKAGE_VERSION) == 0,
+        "xgauge/version.h matches the CMake package version");
 
-    const xgauge::PartModel part = xgauge::PartModel::load(argv[1]);
-    const std::vector<double> nominal = part.nominalValues();
-    const double size_x = nominal.at(static_cast<size_t>(part.dimensionIndex("size_x")));
-    const double size_y = nominal.at(static_cast<size_t>(part.dimensionIndex("size_y")));
-    const double size_z = nominal.at(static_cast<size_t>(part.dimensionIndex("size_z")));
-    const xgauge::TriangleMesh mesh = part.mesh(nominal);
-    check(mesh.vertices.size() == 8 && mesh.triangles.size() == 12, "8 vertices, 12 triangles");
+  xgauge::MeasurementOptions options;
+  options.job_file = argv[1];
+  options.truth_file = argv[2];
+  options.output_folder = argv[3];
+  int stages = 0;
+  options.on_stage = [&stages](const xgauge::StageSummary& s) {
+    ++stages;
+    std::printf("  stage %-24s loss %.6g -> %.6g\n", s.name.c_str(), s.loss_before, s.loss_after);
+  };
+  std::string why;
+  const bool valid = options.IsValid(&why);
+  check(valid, "the options are valid " + why);
 
-    const xgauge::MeshCheck closed = xgauge::checkClosedMesh(mesh);
-    check(closed.ok(), "closed outward mesh " + closed.message);
-
-    const double volume = xgauge::signedVolume(mesh), expected = size_x * size_y * size_z;
-    std::printf("volume %.6f mm^3, expected %.6f\n", volume, expected);
-    check(near(volume, expected), "volume = size_x * size_y * size_z");
-
-    const xgauge::BoundingBox box = xgauge::boundingBox(mesh);
-    const xgauge::Vec3 half(size_x / 2, size_y / 2, size_z / 2);
-    bool box_ok = true;
-    for (int i = 0; i < 3; ++i) box_ok = box_ok && near(box.max_mm[i], half[i]) && near(box.min_mm[i], -half[i]);
-    check(box_ok, "bounding box = +-size/2");
-
-    // Bad input is reported as xgauge::Error.
-    bool threw = false;
-    try {
-      (void)part.dimensionIndex("no_such_dimension");
-    } catch (const xgauge::Error&) {
-      threw = true;
-    }
-    check(threw, "unknown dimension throws xgauge::Error");
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "error: %s\n", e.what());
-    return 1;
+  const xgauge::MeasurementSummary summary = xgauge::measure(options);
+  std::printf("%s\n%s", summary.BriefReport().c_str(), summary.FullReport().c_str());
+  check(summary.termination == xgauge::TerminationType::kMeasured, "measured");
+  int compared = 0;
+  for (const auto& d : summary.dimensions) {
+    if (!d.free || !d.true_value) continue;
+    ++compared;
+    check(std::abs(d.value - *d.true_value) <= 0.05, d.name + " within 0.05 mm of the truth");
+    check(d.expanded_uncertainty.has_value() && *d.expanded_uncertainty > 0.0,
+          d.name + " has its U");
   }
+  check(compared >= 5, "at least 5 dimensions compared with the truth");
+  check(stages >= 2 && stages >= static_cast<int>(summary.stages.size()),
+        "the stage callback ran for every stage");
+  check(summary.ToJson().rfind("{", 0) == 0 &&
+            summary.ToJson().find("\"dimensions\"") != std::string::npos,
+        "ToJson is result.json");
+
+  xgauge::MeasurementOptions both = options;
+  both.job_json = "{}";
+  const bool refused = !both.IsValid(&why);
+  check(refused && !why.empty(), "two forms of the job are refused: " + why);
+  xgauge::MeasurementOptions missing;
+  missing.job_file = std::string(argv[1]) + ".missing";
+  const xgauge::MeasurementSummary failed = xgauge::measure(missing);
+  check(failed.termination == xgauge::TerminationType::kFailure &&
+            failed.message.find(".missing") != std::string::npos && failed.exit_status == 1,
+        "a missing job is a failure naming the file: " + failed.message);
+
   std::printf("%s\n", failures == 0 ? "all checks passed" : "some checks FAILED");
   return failures == 0 ? 0 : 1;
 }

@@ -11,6 +11,7 @@
 #include "xgauge/measure/tolerance.h"
 #include "xgauge/measure/uncertainty.h"
 
+#include <functional>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -126,6 +127,9 @@ struct MeasureOptions {
   // for its outputs anyway (`xgauge measure`: about 0.9 s of a 4096^2
   // pair's measurement was these two renders).
   bool full_size_losses = true;
+  // Called on the calling thread as each stage ends, retries' stages too
+  // (the front door's iteration callback, xgauge/xgauge.h); empty: none.
+  std::function<void(const StageReport&)> on_stage;
 };
 // The same on a model built by the caller, from `theta` (model.start() for a
 // fresh measurement).

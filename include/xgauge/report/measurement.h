@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <functional>
 #include <span>
 #include <vector>
 
@@ -39,7 +40,9 @@ struct MeasurementWithPictures {
   MeasurementResult result;
   std::vector<Image> simulated;  // simulateRadiographs at the solution
 };
-MeasurementWithPictures measureWithPictures(ForwardModel& model);
+// `on_stage`: MeasureOptions::on_stage.
+MeasurementWithPictures measureWithPictures(ForwardModel& model,
+                                            std::function<void(const StageReport&)> on_stage = {});
 
 // The pictures of a measurement's page, {"residual_scale", "colour_map",
 // "radiographs"}; per radiograph the normalized radiograph, the simulated

@@ -1,0 +1,130 @@
+// xgauge's front door: a part's dimensions measured from radiographs, from
+// code, in the style of Ceres's Solver::Options / Solve / Summary. This
+// header and xgauge/version.h are what the installed package exposes; they
+// need nothing but the C++ standard library. docs/library.md shows a whole
+// program; docs/formats.md documents the job and result.json.
+//
+//   xgauge::MeasurementOptions options;
+//   options.job_file = "examples/prism_a_small_job.json";
+//   std::string why;
+//   if (!options.IsValid(&why)) ...
+//   const xgauge::MeasurementSummary summary = xgauge::measure(options);
+//   std::cout << summary.FullReport();
+//   if (summary.termination == xgauge::TerminationType::kMeasured) ...
+//
+// Nothing here throws for bad input or a failed fit: the summary's
+// termination and message say what happened. The library writes its own
+// messages (stages, warnings) to spdlog's default logger on stderr; a
+// program that wants them per call sets `on_stage`.
+#pragma once
+
+#include <filesystem>
+#include <functional>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace xgauge {
+
+// How a measurement ended.
+enum class TerminationType {
+  kMeasured,     // the fit explains the radiographs: the values are results
+  kNotMeasured,  // the data contradict every fit tried (failures say why):
+                 // the values are the rejected fit's, not results; no verdict
+  kFailure,      // the inputs could not be used (message names the file and key)
+};
+const char* TerminationTypeToString(TerminationType type);  // "measured", ...
+
+// A dimension's verdict against its tolerance (ISO 14253-1, the decision
+// rule in docs/method.md); kNone where there is no tolerance, or the U is
+// unverified and the job does not accept unverified verdicts.
+enum class VerdictType { kNone, kConforms, kDoesNotConform, kInconclusive };
+const char* VerdictTypeToString(VerdictType type);  // "", "conforms", ...
+
+// One stage of the fit, as it ends (a pose search, a joint search, the
+// least-squares fit): what an iteration callback sees.
+struct StageSummary {
+  std::string name;    // e.g. "pose t00", "joint", "least squares"
+  std::string method;  // the optimiser
+  int level = 0;       // image pyramid level (0: full size)
+  int evaluations = 0;
+  double loss_before = 0.0, loss_after = 0.0;
+  double seconds = 0.0;
+  std::string termination;  // the optimiser's reason to stop
+};
+using StageCallback = std::function<void(const StageSummary&)>;
+
+struct MeasurementOptions {
+  // The job (docs/formats.md, "Measurement job"): a file, whose relative
+  // paths are taken from its folder; or its JSON text, whose relative paths
+  // are taken from `base_folder`. Exactly one of the two.
+  std::filesystem::path job_file;
+  std::string job_json;
+  std::filesystem::path base_folder = ".";
+  // Optional: a virtual lab's truth.json; the reports show each dimension's
+  // error against it.
+  std::filesystem::path truth_file;
+  // Optional: where result.json, the simulated and difference images,
+  // measure.log and (with write_report) report.html go, each written
+  // atomically; empty: nothing is written. The folder's parent must exist.
+  std::filesystem::path output_folder;
+  bool write_report = true;
+  // Called on the calling thread as each stage of the fit ends.
+  StageCallback on_stage;
+
+  // True when the options are consistent (one form of the job, a base
+  // folder for its text); otherwise false with the reason in *error (when
+  // error is not null). Files are checked as measure() reads them.
+  bool IsValid(std::string* error) const;
+};
+
+struct DimensionSummary {
+  std::string name;
+  std::string unit;  // "mm" or "deg"
+  double value = 0.0;
+  bool free = false;  // measured (false: held at the job's value)
+  // U (k = 2); nullopt where the radiographs cannot determine the dimension
+  // alone, and for held dimensions.
+  std::optional<double> expanded_uncertainty;
+  bool verified = false;  // U from a verification (substitution) on a master
+  std::optional<double> lower_limit, upper_limit;  // the tolerance zone
+  VerdictType verdict = VerdictType::kNone;
+  std::optional<double> true_value;  // from truth_file
+};
+
+struct MeasurementSummary {
+  TerminationType termination = TerminationType::kFailure;
+  std::string message;  // kFailure: the error; otherwise empty
+  std::vector<DimensionSummary> dimensions;
+  std::vector<std::string> failures;  // kNotMeasured: the acceptance rule's reasons
+  std::vector<std::string> warnings;  // what may be wrong with a result
+  std::vector<StageSummary> stages;
+  int attempts = 0;
+  int evaluations = 0;
+  double final_loss = 0.0;
+  double seconds = 0.0;
+  // The exit status `xgauge measure` gives (docs/formats.md): 0 every
+  // verdict conforms, 1 not measured or failure, 2 some verdict
+  // inconclusive or withheld, 3 some dimension does not conform.
+  int exit_status = 1;
+
+  // One line: the termination, the dimensions' count and the worst verdict.
+  std::string BriefReport() const;
+  // The table `xgauge measure` prints: every dimension with its U, tolerance
+  // zone and verdict (and error against the truth), combinations,
+  // warnings; for kNotMeasured the failures first.
+  std::string FullReport() const;
+  // result.json's text (docs/formats.md); empty for kFailure.
+  std::string ToJson() const;
+
+ private:
+  friend class MeasurementSummaryBuilder;
+  std::string full_report_;
+  std::string json_;
+};
+
+// Measures the job. Never throws for bad input or a failed fit (see
+// TerminationType); std::bad_alloc and the like propagate.
+MeasurementSummary measure(const MeasurementOptions& options);
+
+}  // namespace xgauge

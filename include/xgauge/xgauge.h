@@ -1,5 +1,5 @@
-// xgauge's front door: a part's dimensions measured from radiographs, from
-// code, in the style of Ceres's Solver::Options / Solve / Summary. This
+// xgauge's front door: a part's dimensions measured from radiographs, and a
+// material calibrated, from code, in the style of Ceres's Solver::Options / Solve / Summary. This
 // header and xgauge/version.h are what the installed package exposes; they
 // need nothing but the C++ standard library. docs/library.md shows a whole
 // program; docs/formats.md documents the job and result.json.
@@ -22,6 +22,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace xgauge {
@@ -126,5 +127,65 @@ struct MeasurementSummary {
 // Measures the job. Never throws for bad input or a failed fit (see
 // TerminationType); std::bad_alloc and the like propagate.
 MeasurementSummary measure(const MeasurementOptions& options);
+
+// Calibration of a material's curve I(x) (docs/method.md): from one
+// radiograph of a wedge, or from radiographs of a part of known dimensions.
+enum class CalibrationKind { kWedge, kPart };
+
+enum class CalibrationTermination {
+  kCalibrated,  // material.json, calibration.json (and report.html) written
+  kStepFailed,  // a step could not go on (step and message say which and
+                // why); what the steps found is in failed_calibration.json
+                // (and .html), and no material was written
+  kFailure,     // the inputs could not be used (message names the file and key)
+};
+const char* CalibrationTerminationToString(CalibrationTermination type);
+
+struct CalibrationOptions {
+  CalibrationKind kind = CalibrationKind::kWedge;
+  // The calibration job (docs/formats.md), relative paths from its folder.
+  std::filesystem::path job_file;
+  // Required: the outputs, each written atomically; an earlier run's
+  // outputs that this run's contradict (a failure's diagnostic beside a new
+  // material, or the reverse) are removed as this run's arrive.
+  std::filesystem::path output_folder;
+  // Optional: a virtual lab's truth.json: the outputs give the curve's
+  // deviation from the true one.
+  std::filesystem::path truth_file;
+  bool write_report = true;
+
+  bool IsValid(std::string* error) const;
+};
+
+struct CalibrationSummary {
+  CalibrationTermination termination = CalibrationTermination::kFailure;
+  std::string message;  // kStepFailed and kFailure: why
+  std::string step;     // the step that ran last (kStepFailed: the one that failed)
+  // The material: I(x) = sum_k weight_k exp(-mu_k x) (x in mm), the
+  // standard uncertainty of I(x), the paths it was calibrated over.
+  struct Term {
+    double weight = 0.0, mu_per_mm = 0.0;
+  };
+  std::vector<Term> terms;
+  double transmission_uncertainty = 0.0;
+  std::optional<std::pair<double, double>> calibrated_range_mm;
+  double seconds = 0.0;
+
+  std::string BriefReport() const;
+  // What `xgauge calibrate` prints: the wedge's ramp or pose, the fits by
+  // number of terms, the curve's uncertainty and its influences, the material.
+  std::string FullReport() const;
+  // material.json's text; empty unless kCalibrated.
+  std::string ToJson() const;
+
+ private:
+  friend class CalibrationSummaryBuilder;
+  std::string full_report_;
+  std::string json_;
+};
+
+// Calibrates. Never throws for bad input or a failed step (see
+// CalibrationTermination).
+CalibrationSummary calibrate(const CalibrationOptions& options);
 
 }  // namespace xgauge

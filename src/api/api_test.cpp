@@ -14,6 +14,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -199,6 +200,99 @@ TEST_F(FrontDoor, ABadJobIsAFailureNamingTheKeyAndWritesNothing) {
   const MeasurementSummary missing = measure(options);
   EXPECT_EQ(missing.termination, TerminationType::kFailure);
   EXPECT_NE(missing.message.find("a.tif"), std::string::npos) << missing.message;
+}
+
+}  // namespace
+}  // namespace xgauge
+
+namespace xgauge {
+namespace {
+
+// A wedge's radiograph (tests/cli_test.cpp's): a ramp of 0.2 .. 20 mm over
+// rows 40 .. 260 of a two-term material, whose curve the calibration gives
+// back; an open beam, which has no ramp.
+class FrontDoorCalibration : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = fs::temp_directory_path() /
+           ("xgauge_api_cal_" +
+            std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    fs::remove_all(dir_);
+    fs::create_directories(dir_);
+    std::ofstream(dir_ / "machine.json") << R"({"source_detector_distance_mm": 1000,
+      "detector": {"columns": 200, "rows": 300, "pixel_pitch_mm": [1.0, 1.0]}})";
+    Image image(200, 300, 1.0f);
+    for (int y = 40; y < 260; ++y)
+      for (int x = 50; x < 150; ++x)
+        image(x, y) = static_cast<float>(curve(0.2 + 19.8 * (y + 0.5 - 40) / 220));
+    writeTiff(dir_ / "wedge.tif", image, TiffFormat::kFloat32);
+    writeTiff(dir_ / "open.tif", Image(200, 300, 1.0f), TiffFormat::kFloat32);
+  }
+  void TearDown() override { fs::remove_all(dir_); }
+  static double curve(double path) {
+    return 0.6 * std::exp(-0.05 * path) + 0.4 * std::exp(-0.3 * path);
+  }
+  fs::path job(const std::string& image) {
+    const fs::path file = dir_ / ("job_" + image + ".json");
+    std::ofstream(file) << R"({"machine": "machine.json",
+      "radiograph": {"image": ")" +
+                               image + R"(", "white_region": [5, 5, 30, 30]},
+      "wedge": {"max_thickness_mm": 20.0, "ramp_length_mm": 90.0}})";
+    return file;
+  }
+  fs::path dir_;
+};
+
+TEST_F(FrontDoorCalibration, AWedgeGivesBackItsCurve) {
+  CalibrationOptions options;
+  options.job_file = job("wedge.tif");
+  options.output_folder = dir_ / "cal";
+  options.write_report = false;
+  std::string why;
+  ASSERT_TRUE(options.IsValid(&why)) << why;
+  const CalibrationSummary summary = calibrate(options);
+  ASSERT_EQ(summary.termination, CalibrationTermination::kCalibrated) << summary.BriefReport();
+  ASSERT_FALSE(summary.terms.empty());
+  ASSERT_TRUE(summary.calibrated_range_mm.has_value());
+  // The summary's curve is the drawn one within 0.015 (the synthetic ramp's
+  // rows are not a wedge's exact projection: its thin end, 0.2 mm, reads
+  // as about 0 by eq. 3.7, which shifts the paths by up to 0.2 mm).
+  double previous = 2.0;
+  for (double x : {0.0, 1.0, 5.0, 10.0, 15.0}) {
+    double fitted = 0.0;
+    for (const auto& t : summary.terms) fitted += t.weight * std::exp(-t.mu_per_mm * x);
+    EXPECT_NEAR(fitted, curve(x), 0.015) << x << " mm";
+    EXPECT_LT(fitted, previous) << x << " mm";
+    previous = fitted;
+  }
+  EXPECT_EQ(summary.ToJson(), [&] {
+    std::ifstream in(dir_ / "cal" / "material.json");
+    std::stringstream s;
+    s << in.rdbuf();
+    return s.str();
+  }());
+  EXPECT_NE(summary.FullReport().find("thin end at row"), std::string::npos);
+  EXPECT_EQ(summary.BriefReport().rfind("calibrated: ", 0), 0u) << summary.BriefReport();
+}
+
+TEST_F(FrontDoorCalibration, AFailedStepIsNamedAndLeavesOnlyItsDiagnostic) {
+  CalibrationOptions options;
+  options.job_file = job("open.tif");
+  options.output_folder = dir_ / "cal";
+  const CalibrationSummary summary = calibrate(options);
+  EXPECT_EQ(summary.termination, CalibrationTermination::kStepFailed);
+  EXPECT_EQ(summary.step, "find the ramp");
+  EXPECT_NE(summary.message.find("no ramp found"), std::string::npos) << summary.message;
+  EXPECT_TRUE(summary.ToJson().empty());
+  EXPECT_TRUE(fs::exists(dir_ / "cal" / "failed_calibration.json"));
+  EXPECT_FALSE(fs::exists(dir_ / "cal" / "material.json"));
+  // Options without an output folder are refused before anything runs.
+  CalibrationOptions incomplete;
+  incomplete.job_file = options.job_file;
+  std::string why;
+  EXPECT_FALSE(incomplete.IsValid(&why));
+  EXPECT_NE(why.find("output_folder"), std::string::npos) << why;
+  EXPECT_EQ(calibrate(incomplete).termination, CalibrationTermination::kFailure);
 }
 
 }  // namespace

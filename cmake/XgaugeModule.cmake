@@ -1,8 +1,9 @@
 # Helpers that keep each module's CMakeLists.txt to a few lines.
 #
 # xgauge_module(NAME SOURCES ... DEPS ...)
-#   A static library xgauge_<NAME> with alias xgauge::<NAME>. Public headers
-#   live in include/xgauge/<NAME>/; DEPS lists the lower modules and external
+#   A static library xgauge_<NAME> with alias xgauge::<NAME>. Its headers
+#   live in internal/xgauge/<NAME>/ (the library's inside: only the front
+#   door, include/xgauge/xgauge.h, is installed); DEPS lists the lower modules and external
 #   targets it links against (PUBLIC), so including a higher module fails to
 #   link. When XGAUGE_INSTALL is on, the library joins the export set
 #   xgaugeTargets (installed as xgauge::<NAME> by the top CMakeLists.txt), so
@@ -33,9 +34,12 @@ function(xgauge_module name)
   cmake_parse_arguments(ARG "" "" "SOURCES;DEPS" ${ARGN})
   add_library(xgauge_${name} STATIC ${ARG_SOURCES})
   add_library(xgauge::${name} ALIAS xgauge_${name})
-  # The build tree's include/ holds generated headers (xgauge/version.h).
+  # include/ holds the front door (xgauge/xgauge.h), internal/ the modules'
+  # own headers (used in this tree, never installed), the build tree's
+  # include/ the generated xgauge/version.h.
   target_include_directories(xgauge_${name}
     PUBLIC $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/include>
+           $<BUILD_INTERFACE:${PROJECT_SOURCE_DIR}/internal>
            $<BUILD_INTERFACE:${PROJECT_BINARY_DIR}/include>
            $<INSTALL_INTERFACE:${CMAKE_INSTALL_INCLUDEDIR}>
     PRIVATE ${PROJECT_SOURCE_DIR}/src)

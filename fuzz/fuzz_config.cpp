@@ -1,4 +1,4 @@
-// libFuzzer target: xgauge::ConfigNode (include/xgauge/core/config.h):
+// libFuzzer target: xgauge::ConfigNode (internal/xgauge/core/config.h):
 // parse arbitrary text, walk the document with the accessors the loaders use
 // (keys, at, find, size, operator[], number, string, json), then finish().
 // Expected outcomes: values, or xgauge::Error. Anything else (an nlohmann

@@ -1,4 +1,4 @@
-// libFuzzer target: the part-model loader (include/xgauge/geometry/part_model.h).
+// libFuzzer target: the part-model loader (internal/xgauge/geometry/part_model.h).
 // The bytes are parsed as a JSON config and loaded with PartModel::fromConfig
 // as if they were <scratch>/part.json; the scratch folder also holds the
 // tetrahedron tetra.stl, so {"shape": {"type": "stl", "file": "tetra.stl"}}

@@ -1,4 +1,4 @@
-// libFuzzer target: xgauge::readStl (include/xgauge/geometry/stl.h), binary
+// libFuzzer target: xgauge::readStl (internal/xgauge/geometry/stl.h), binary
 // and ASCII, on arbitrary bytes written to a scratch file. Expected outcomes:
 // a closed, outward mesh (checkClosedMesh passes, as the header promises), or
 // xgauge::Error. Anything else is a finding.

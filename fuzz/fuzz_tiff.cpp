@@ -1,4 +1,4 @@
-// libFuzzer target: xgauge::readTiff (include/xgauge/image/tiff.h) on
+// libFuzzer target: xgauge::readTiff (internal/xgauge/image/tiff.h) on
 // arbitrary bytes written to a scratch file. Expected outcomes: an Image, or
 // xgauge::Error. Anything else (another exception, a sanitizer report, an
 // abort, an allocation over -malloc_limit_mb) is a finding.

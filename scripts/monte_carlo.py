@@ -52,7 +52,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 
-# xgauge's defaults for unstated uncertainties (include/xgauge/...).
+# xgauge's defaults for unstated uncertainties (internal/xgauge/...).
 DEFAULT_U_DISTANCE_MM = 0.5
 DEFAULT_U_PITCH_RELATIVE = 1e-4
 DEFAULT_U_TRANSMISSION = 0.001

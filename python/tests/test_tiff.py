@@ -44,7 +44,7 @@ def test_errors_name_the_file(tmp_path):
 
 
 def test_read_radiograph_reads_raw_with_a_sidecar(tmp_path):
-    image = np.arange(12, dtype=">u2").reshape(3, 4) * 1000
+    image = (np.arange(12).reshape(3, 4) * 1000).astype(">u2")
     (tmp_path / "a.raw").write_bytes(b"HDR" + image.tobytes())
     (tmp_path / "a.raw.ini").write_text(
         "[raw]\nwidth = 4\nheight = 3\ntype = uint16\nbyte_order = big\noffset = 3\n")

@@ -13,6 +13,7 @@
 #include <dcmtk/oflog/oflog.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cerrno>
 #include <cmath>
 #include <cstring>
@@ -77,6 +78,123 @@ Image rescaledFrame(const Stored* samples, int width, int height, unsigned bits_
   return image;
 }
 
+uint16_t u16(const std::string& b, size_t at, bool big) {
+  const auto c0 = static_cast<unsigned char>(b[at]), c1 = static_cast<unsigned char>(b[at + 1]);
+  return static_cast<uint16_t>(big ? (c0 << 8) | c1 : (c1 << 8) | c0);
+}
+
+uint32_t u32(const std::string& b, size_t at, bool big) {
+  const uint32_t lo = u16(b, at, big), hi = u16(b, at + 2, big);
+  return big ? (lo << 16) | hi : (hi << 16) | lo;
+}
+
+constexpr uint32_t kUndefinedLength = 0xffffffffu;
+
+// Walks every element header of the file (group 0002 in explicit VR
+// little-endian, then the data set in its transfer syntax), descending into
+// sequences and items, and refuses any value longer than the bytes left:
+// DCMTK allocates a value's declared length before reading it, so a
+// 300-byte file declaring a 3 GB element would otherwise allocate 3 GB.
+// Returns the transfer syntax UID; refuses syntaxes other than the three
+// native ones, naming them.
+std::string checkElementLengths(const std::string& bytes, const SourceLocation& where) {
+  const size_t size = bytes.size();
+  size_t at = 132;
+  std::string syntax;
+  bool implicit = false, big = false, in_meta = true;
+  size_t meta_end = 0;  // from (0002,0000), when given
+  while (at < size) {
+    if (size - at < 8) failAt(where, "the file ends within an element's header at byte {}", at);
+    if (in_meta && u16(bytes, at, false) != 0x0002) {
+      // The data set starts: its transfer syntax decides the encoding.
+      // DCMTK reads the meta group as long as its group length says: the
+      // two must agree, or DCMTK would parse other bytes than these.
+      if (meta_end != 0 && at != meta_end)
+        failAt(where,
+               "the File Meta Information Group Length (0002,0000) ends it at byte {} but group "
+               "0002 ends at byte {}: corrupt",
+               meta_end, at);
+      in_meta = false;
+      if (syntax == UID_LittleEndianImplicitTransferSyntax) {
+        implicit = true;
+      } else if (syntax == UID_BigEndianExplicitTransferSyntax) {
+        big = true;
+      } else if (syntax.empty()) {
+        failAt(where, "the file meta information states no Transfer Syntax UID (0002,0010)");
+      } else if (syntax != UID_LittleEndianExplicitTransferSyntax) {
+        const DcmXfer transfer(syntax.c_str());
+        failAt(where,
+               "the transfer syntax is {} ({}): xgauge reads uncompressed DICOM only (implicit "
+               "or explicit VR little-endian, explicit big-endian); decompress it first (DCMTK: "
+               "dcmdjpeg, dcmdjpls, dcmdrle, dcmconv +te)",
+               transfer.getXfer() == EXS_Unknown ? "unknown" : transfer.getXferName(), syntax);
+      }
+    }
+    const bool big_here = !in_meta && big, implicit_here = !in_meta && implicit;
+    const uint16_t group = u16(bytes, at, big_here), element = u16(bytes, at + 2, big_here);
+    uint32_t length = 0;
+    bool descend = false;
+    if (group == 0xfffe) {
+      // Items and delimiters: an item's content is elements.
+      length = u32(bytes, at + 4, big_here);
+      at += 8;
+      if (element == 0xe000) continue;
+      if (length != 0) failAt(where, "a delimiter of nonzero length at byte {}", at - 8);
+      continue;
+    }
+    std::string vr;
+    if (implicit_here) {
+      length = u32(bytes, at + 4, big_here);
+      descend = DcmTag(DcmTagKey(group, element)).getEVR() == EVR_SQ;
+      at += 8;
+    } else {
+      vr = bytes.substr(at + 4, 2);
+      // Not a VR at all: DCMTK would guess at the encoding from here on.
+      if (!std::isupper(static_cast<unsigned char>(vr[0])) ||
+          !std::isupper(static_cast<unsigned char>(vr[1])))
+        failAt(where, "element ({:04X},{:04X}) at byte {} has no valid VR: corrupt", group, element,
+               at);
+      // The VRs with a 2-byte length; every other VR, unknown ones included
+      // (as DCMTK reads them), has 2 reserved bytes and a 4-byte length.
+      static constexpr std::string_view kShortVrs[] = {"AE", "AS", "AT", "CS", "DA", "DS", "DT",
+                                                       "FL", "FD", "IS", "LO", "LT", "PN", "SH",
+                                                       "SL", "SS", "ST", "TM", "UI", "UL", "US"};
+      if (std::find(std::begin(kShortVrs), std::end(kShortVrs), vr) == std::end(kShortVrs)) {
+        if (size - at < 12)
+          failAt(where, "the file ends within an element's header at byte {}", at);
+        length = u32(bytes, at + 8, big_here);
+        at += 12;
+      } else {
+        length = u16(bytes, at + 6, big_here);
+        at += 8;
+      }
+      descend = vr == "SQ";
+    }
+    if (length == kUndefinedLength) {
+      if (group == 0x7fe0)
+        failAt(where, "({:04X},{:04X}) has undefined length: encapsulated (compressed) pixels",
+               group, element);
+      if (!descend)
+        failAt(where, "({:04X},{:04X}) {} has undefined length: not supported", group, element,
+               vr.empty() ? "(implicit VR)" : vr);
+      continue;
+    }
+    if (length > size - at)
+      failAt(where,
+             "element ({:04X},{:04X}) at byte {} declares {} bytes but the file has {} left: it "
+             "is truncated or corrupt",
+             group, element, at, length, size - at);
+    if (in_meta && group == 0x0002 && element == 0x0000 && length == 4)
+      meta_end = at + 4 + u32(bytes, at, false);
+    if (in_meta && group == 0x0002 && element == 0x0010) {
+      syntax = bytes.substr(at, length);
+      while (!syntax.empty() && (syntax.back() == '\0' || syntax.back() == ' ')) syntax.pop_back();
+    }
+    if (!descend) at += length;
+  }
+  return syntax;
+}
+
 }  // namespace
 
 Image readDiconde(const fs::path& path, std::string* sha256, const ExpectedImageSize* expected,
@@ -104,6 +222,7 @@ Image readDiconde(const fs::path& path, std::string* sha256, const ExpectedImage
   if (sha256) *sha256 = sha256Hex(bytes);
   if (bytes.size() < 132 || bytes.compare(128, 4, "DICM") != 0)
     failAt(where, "not a DICOM file: no 'DICM' after the 128-byte preamble");
+  checkElementLengths(bytes, where);
 
   DcmFileFormat format;
   {

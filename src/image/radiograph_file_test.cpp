@@ -462,7 +462,9 @@ TEST(Diconde, RescaleFramesAndCompressionAreHandled) {
     DcmRLEEncoderRegistration::cleanup();
   }
   std::string message = messageOf(folder / "rle.dcm");
-  EXPECT_TRUE(contains(message, "rle.dcm: the pixels are compressed (RLE Lossless")) << message;
+  EXPECT_TRUE(
+      contains(message, "rle.dcm: the transfer syntax is RLE Lossless (1.2.840.10008.1.2.5)"))
+      << message;
 
   // Signed samples and short Pixel Data are refused, naming the tag.
   {
@@ -480,8 +482,18 @@ TEST(Diconde, RescaleFramesAndCompressionAreHandled) {
   EXPECT_TRUE(contains(message, "(7FE0,0010) PixelData holds 15 samples but 5x300 pixels"))
       << message;
 
-  // Truncated files: refused with DCMTK's reason, no crash.
-  const std::string whole = readBytes(plain);
+  // A value declared longer than the file: refused before DCMTK allocates it.
+  std::string whole = readBytes(plain);
+  const size_t pixel_data = whole.rfind(std::string("\xe0\x7f\x10\x00OW\0\0", 8));
+  ASSERT_NE(pixel_data, std::string::npos);
+  std::string huge = whole;
+  huge.replace(pixel_data + 8, 4, std::string("\x00\x00\x00\xb0", 4));  // 2.9 GB
+  writeText(folder / "huge.dcm", huge);
+  message = messageOf(folder / "huge.dcm");
+  EXPECT_TRUE(contains(message, "huge.dcm: element (7FE0,0010) at byte")) << message;
+  EXPECT_TRUE(contains(message, "declares 2952790016 bytes but the file has 30 left")) << message;
+
+  // Truncated files: refused with a reason, no crash.
   for (const size_t length : {size_t{10}, size_t{140}, whole.size() / 2, whole.size() - 3}) {
     writeText(folder / "cut.dcm", whole.substr(0, length));
     message = messageOf(folder / "cut.dcm");

@@ -9,9 +9,9 @@
 // (0028,1053) Rescale Slope and (0028,1052) Rescale Intercept (value =
 // slope * stored + intercept, in double, then rounded to float; default 1
 // and 0), and (7FE0,0010) Pixel Data in a native (uncompressed) transfer
-// syntax: implicit or explicit VR little-endian, explicit big-endian, or
-// deflated. Also (7FE0,0008) Float Pixel Data with Bits Allocated 32, which
-// xgauge writes for float32 images (no rescale applies to it).
+// syntax: implicit or explicit VR little-endian, or explicit big-endian
+// (deflated and every compressed syntax are refused, naming them). Also (7FE0,0008) Float Pixel
+// Data with Bits Allocated 32, which xgauge writes for float32 images (no rescale applies to it).
 #pragma once
 
 #include "xgauge/image/image.h"
@@ -25,16 +25,17 @@ namespace xgauge {
 // Reads a DICOM file's one image (or the mean of its frames;
 // `frames_averaged` says how many). The file is read into memory once (its
 // size checked against the memory limit of tiff.h first), hashed when
-// `sha256` is given, and parsed from those bytes.
+// `sha256` is given, and parsed from those bytes. Before DCMTK parses them,
+// every element header is walked and a value declared longer than the
+// bytes left is refused: DCMTK would allocate the declared length first.
 //
 // Throws Error naming the file (and the tag) for: not a DICOM file, a
-// compressed (encapsulated) transfer syntax, naming it ("decompress it
-// first, e.g. dcmdjpeg"), a missing or contradictory tag, colour or
-// MONOCHROME1 images, signed or other bit depths, Pixel Data shorter than
-// Rows x Columns x Frames, a size beyond the memory limit or other than
-// `expected`, a rescale giving a non-finite value, a NaN float sample
-// (naming pixel and frame), or any error DCMTK reports (with its message).
-// DCMTK prints nothing.
+// transfer syntax other than the three native ones, naming it ("decompress
+// it first, e.g. dcmdjpeg"), an element longer than the file, a missing or contradictory tag,
+// colour or MONOCHROME1 images, signed or other bit depths, Pixel Data shorter than Rows x Columns
+// x Frames, a size beyond the memory limit or other than `expected`, a rescale giving a non-finite
+// value, a NaN float sample (naming pixel and frame), or any error DCMTK reports (with its
+// message). DCMTK prints nothing.
 Image readDiconde(const std::filesystem::path& path, std::string* sha256 = nullptr,
                   const ExpectedImageSize* expected = nullptr, int* frames_averaged = nullptr);
 

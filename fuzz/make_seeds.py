@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Writes the generated seeds of fuzz/corpus/ (TIFF and STL); see docs/fuzzing.md.
+"""Writes the generated seeds of fuzz/corpus/ (TIFF, raw, DICOM and STL; NXtomo
+with --xgauge); see docs/fuzzing.md.
 
 The TIFF files are built byte by byte here (no imaging library needed): 8-,
 16- and 32-bit unsigned, 16-bit signed, 32- and 64-bit float; strips and
@@ -8,12 +9,21 @@ horizontal and floating-point predictors; little- and big-endian; classic
 TIFF and BigTIFF; plus an RGB and a MinIsWhite image that xgauge refuses.
 The STL files are a tetrahedron and a cube, ASCII and binary, an inward one,
 two solids in one file and a cube with a corner written 1e-13 mm off (welded).
+The raw seeds are a sidecar length (2 bytes), a JSON or INI sidecar and the
+samples (fuzz/fuzz_raw.cpp); the DICOM files are built byte by byte (explicit
+and implicit VR little-endian, big-endian, 8- and 16-bit, two frames, a
+rescale, float pixel data, and an RLE transfer syntax xgauge refuses). NXtomo
+needs libhdf5: with --xgauge PATH, `PATH convert` writes those seeds from
+TIFF seeds (uint16 and float32).
 Deterministic: running it again gives the same bytes. Usage:
-    python3 fuzz/make_seeds.py            # writes fuzz/corpus/{tiff,stl}
+    python3 fuzz/make_seeds.py [--xgauge build/apps/xgauge/xgauge]
 """
 import math
 import os
 import struct
+import subprocess
+import sys
+import tempfile
 import zlib
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -268,8 +278,117 @@ def stl_seeds():
     }
 
 
+# Raw + sidecar --------------------------------------------------------------
+
+def raw_seed(sidecar, samples):
+    return struct.pack("<H", len(sidecar)) + sidecar + samples
+
+
+def raw_seeds():
+    u16 = b"".join(struct.pack("<H", 100 * i) for i in range(12))
+    f32_be = b"".join(struct.pack(">f", 0.25 * i) for i in range(12))
+    json_u16 = b'{"width": 4, "height": 3, "type": "uint16", "byte_order": "little"}'
+    ini_f32 = (b"[raw]\nwidth = 3\nheight = 2\ntype = float32\nbyte_order = big\n"
+               b"offset = 4\nframes = 2\n")
+    return {
+        "u16_json.bin": raw_seed(json_u16, u16),
+        "f32_big_ini_offset_frames.bin": raw_seed(ini_f32, b"HEAD" + f32_be[:48]),
+        "u8_json.bin": raw_seed(b'{"width": 3, "height": 2, "type": "uint8"}', bytes(range(6))),
+        "f64_json_nan.bin": raw_seed(
+            b'{"width": 1, "height": 2, "type": "float64", "byte_order": "little"}',
+            struct.pack("<2d", 1.0, float("nan"))),
+    }
+
+
+# DICOM ----------------------------------------------------------------------
+
+LONG_VRS = {b"OB", b"OW", b"OF", b"SQ", b"UT", b"UN"}
+
+
+def dicom_element(group, element, vr, value, explicit=True, big=False):
+    if len(value) % 2:
+        value += b"\0" if vr in (b"UI", b"OB") else b" "
+    order = ">" if big else "<"
+    tag = struct.pack(order + "HH", group, element)
+    if not explicit:
+        return tag + struct.pack(order + "I", len(value)) + value
+    if vr in LONG_VRS:
+        return tag + vr + b"\0\0" + struct.pack(order + "I", len(value)) + value
+    return tag + vr + struct.pack(order + "H", len(value)) + value
+
+
+def dicom(width, height, bits=16, frames=1, syntax=b"1.2.840.10008.1.2.1", rescale=None,
+          float_pixels=False):
+    explicit = syntax != b"1.2.840.10008.1.2"
+    big = syntax == b"1.2.840.10008.1.2.2"
+    order = ">" if big else "<"
+    meta_body = (dicom_element(2, 1, b"OB", b"\0\1") +
+                 dicom_element(2, 2, b"UI", b"1.2.840.10008.5.1.4.1.1.1.1.1") +
+                 dicom_element(2, 3, b"UI", b"2.25.1") +
+                 dicom_element(2, 0x10, b"UI", syntax) +
+                 dicom_element(2, 0x12, b"UI", b"2.25.2"))
+    meta = dicom_element(2, 0, b"UL", struct.pack("<I", len(meta_body))) + meta_body
+
+    def el(group, element, vr, value):
+        return dicom_element(group, element, vr, value, explicit, big)
+
+    def us(value):
+        return struct.pack(order + "H", value)
+    data = el(8, 0x60, b"CS", b"DX")
+    data += el(0x28, 2, b"US", us(1)) + el(0x28, 4, b"CS", b"MONOCHROME2")
+    if frames > 1:
+        data += el(0x28, 8, b"IS", str(frames).encode())
+    data += el(0x28, 0x10, b"US", us(height)) + el(0x28, 0x11, b"US", us(width))
+    data += el(0x28, 0x100, b"US", us(32 if float_pixels else bits))
+    if not float_pixels:
+        data += el(0x28, 0x101, b"US", us(bits)) + el(0x28, 0x102, b"US", us(bits - 1))
+        data += el(0x28, 0x103, b"US", us(0))
+    if rescale:
+        data += el(0x28, 0x1052, b"DS", rescale[1]) + el(0x28, 0x1053, b"DS", rescale[0])
+    n = width * height * frames
+    if float_pixels:
+        data += el(0x7FE0, 8, b"OF", struct.pack(order + "%df" % n, *[0.5 * i for i in range(n)]))
+    elif bits == 8:
+        data += el(0x7FE0, 0x10, b"OB", bytes(i % 256 for i in range(n)))
+    else:
+        data += el(0x7FE0, 0x10, b"OW", struct.pack(order + "%dH" % n, *[97 * i for i in range(n)]))
+    return b"\0" * 128 + b"DICM" + meta + data
+
+
+def dicom_seeds():
+    return {
+        "u16_explicit_le.dcm": dicom(7, 5),
+        "u16_implicit_le.dcm": dicom(4, 3, syntax=b"1.2.840.10008.1.2"),
+        "u16_big_endian.dcm": dicom(4, 3, syntax=b"1.2.840.10008.1.2.2"),
+        "u8_two_frames.dcm": dicom(5, 3, bits=8, frames=2),
+        "u16_rescaled.dcm": dicom(4, 4, rescale=(b"0.5", b"-10")),
+        "f32_float_pixel_data.dcm": dicom(3, 3, float_pixels=True),
+        "rle_refused.dcm": dicom(4, 3, syntax=b"1.2.840.10008.1.2.5"),
+    }
+
+
+def nxtomo_seeds(xgauge):
+    """NXtomo files written by `xgauge convert` from two TIFF seeds."""
+    seeds = {}
+    with tempfile.TemporaryDirectory() as folder:
+        for name, data in (("u16", tiff(6, 4, 16, UINT, ramp(4000))),
+                           ("f32", tiff(5, 3, 32, IEEEFP, lambda x, y: 0.5 + 0.1 * x - y))):
+            tif = os.path.join(folder, name + ".tif")
+            with open(tif, "wb") as f:
+                f.write(data)
+            nxs = os.path.join(folder, name + ".nxs")
+            subprocess.run([xgauge, "convert", tif, nxs, "-q"], check=True)
+            with open(nxs, "rb") as f:
+                seeds[name + "_projection.nxs"] = f.read()
+    return seeds
+
+
 def main():
-    for folder, seeds in (("tiff", tiff_seeds()), ("stl", stl_seeds())):
+    sets = [("tiff", tiff_seeds()), ("raw", raw_seeds()), ("diconde", dicom_seeds()),
+            ("stl", stl_seeds())]
+    if "--xgauge" in sys.argv:
+        sets.append(("nxtomo", nxtomo_seeds(sys.argv[sys.argv.index("--xgauge") + 1])))
+    for folder, seeds in sets:
         path = os.path.join(HERE, "corpus", "fuzz_" + folder)
         os.makedirs(path, exist_ok=True)
         for name, data in sorted(seeds.items()):

@@ -8,6 +8,8 @@ packages=(
   libeigen3-dev        # vectors, transforms, small linear algebra
   libtbb-dev           # oneTBB: parallel loops
   libtiff-dev          # TIFF read/write
+  libhdf5-dev          # NeXus NXtomo radiographs (libhdf5's C API)
+  libdcmtk-dev         # DICONDE (DICOM) radiographs
   libxrl-dev           # xraylib: attenuation data
   libnlopt-cxx-dev     # NLopt with the C++ interface
   libceres-dev         # Ceres Solver: the final least-squares stage and its covariance

@@ -435,12 +435,12 @@ TEST_F(Hostile, SilentlyAcceptedInputIsRefused) {
       run("measure " + tinyJob(R"({"fixed": {"size_x": 20}, "start": {"size_x": 21}})") + " -o " +
           out("o")),
       {"/dimensions/start/size_x: 'size_x' is fixed; a start value does not apply to it"});
-  // Two pages.
+  // Two pages of different sizes (pages of one size are averaged).
   TIFF* tif = TIFFOpen(out("pages.tif").c_str(), "w");
   ASSERT_NE(tif, nullptr);
   std::vector<float> row(16, 100.0f);
   for (int page = 0; page < 2; ++page) {
-    TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, 16);
+    TIFFSetField(tif, TIFFTAG_IMAGEWIDTH, page == 0 ? 16 : 8);
     TIFFSetField(tif, TIFFTAG_IMAGELENGTH, 1);
     TIFFSetField(tif, TIFFTAG_BITSPERSAMPLE, 32);
     TIFFSetField(tif, TIFFTAG_SAMPLEFORMAT, SAMPLEFORMAT_IEEEFP);
@@ -451,7 +451,62 @@ TEST_F(Hostile, SilentlyAcceptedInputIsRefused) {
   }
   TIFFClose(tif);
   expectFailure(run("normalize " + out("pages.tif") + " --white 0 0 4 1 -o " + out("n.tif")),
-                {out("pages.tif") + ": the file holds more than one image"});
+                {out("pages.tif") + ": page 2 is 8x1 pixels of 32-bit float but page 1 is 16x1"});
+}
+
+// Issue 48, readers: every format converts and normalizes through the CLI,
+// and hostile files of each are refused naming the file, in little memory.
+TEST_F(Hostile, RadiographFilesOfEveryFormat) {
+  Image image(64, 48);
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x) image(x, y) = static_cast<float>(1000 + 7 * x + 13 * y);
+  writeTiff(out("shot.tif"), image, TiffFormat::kUInt16);
+  for (const char* name : {"shot.raw", "shot.nxs", "shot.dcm"}) {
+    ASSERT_EQ(run(std::string("convert ") + out("shot.tif") + " " + out(name) + " -q").status, 0)
+        << name;
+    // Back to TIFF: the same pixels.
+    ASSERT_EQ(run(std::string("convert ") + out(name) + " " + out(name) + ".tif -q").status, 0);
+    const Image back = readTiff(out(name) + ".tif");
+    EXPECT_TRUE(std::equal(back.pixels().begin(), back.pixels().end(), image.pixels().begin()))
+        << name;
+    EXPECT_EQ(
+        run(std::string("normalize ") + out(name) + " --white 0 0 8 8 -o " + out("n.tif") + " -q")
+            .status,
+        0)
+        << name;
+  }
+  EXPECT_EQ(run("convert " + out("shot.nxs") + "#projection=0 " + out("p.dcm") + " -q").status, 0);
+  expectFailure(run("convert " + out("shot.nxs") + "#dark " + out("d.tif")),
+                {out("shot.nxs") + "#dark: #dark: the file holds 1 projection(s), 0 flat(s) and 0 "
+                                   "dark(s)"});
+  expectFailure(run("convert " + out("shot.tif") + " " + out("x.png")),
+                {out("x.png") + ": cannot tell the format from the extension '.png'"});
+  // A sidecar that does not describe its file, and a misspelled key.
+  write("shot.raw.json",
+        R"({"width": 64, "height": 49, "type": "uint16", "byte_order": "little"})");
+  expectFailure(run("normalize " + out("shot.raw") + " --white 0 0 4 4 -o " + out("n.tif")),
+                {out("shot.raw") + ": is 6144 bytes long but its sidecar shot.raw.json declares "
+                                   "6272 bytes"});
+  write("shot.raw.json",
+        R"({"width": 64, "height": 48, "type": "uint16", "byte_order": "little", "ofset": 0})");
+  expectFailure(run("normalize " + out("shot.raw") + " --white 0 0 4 4 -o " + out("n.tif")),
+                {"shot.raw.json", "unknown key 'ofset'; did you mean 'offset'?"});
+  // The memory limit applies to every reader.
+  writeTiff(out("big.tif"), Image(600, 600, 100.0f), TiffFormat::kUInt16);
+  for (const char* name : {"big.raw", "big.nxs", "big.dcm"}) {
+    ASSERT_EQ(run(std::string("convert ") + out("big.tif") + " " + out(name) + " -q").status, 0);
+    expectFailure(run(std::string("--max-image-mb 1 convert ") + out(name) + " " + out("b.tif")),
+                  {out(name) + ": ", "more than the limit of 1.0 MiB (--max-image-mb)"});
+  }
+  // Truncated NXtomo and DICONDE files: clear errors, no crash, no output.
+  const std::string nxs = readText(out("shot.nxs")), dcm = readText(out("shot.dcm"));
+  write("cut.nxs", nxs.substr(0, nxs.size() / 2));
+  write("cut.dcm", dcm.substr(0, dcm.size() / 2));
+  for (const char* name : {"cut.nxs", "cut.dcm"}) {
+    const CommandResult r = run(std::string("convert ") + out(name) + " " + out("cut.tif"));
+    expectFailure(r, {out(name) + ": "});
+    EXPECT_FALSE(fs::exists(out("cut.tif")));
+  }
 }
 
 // Item 8: messages that named no file or key.

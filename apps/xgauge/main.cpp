@@ -3,6 +3,7 @@
 // here as xgauge::Error, printed once, with a non-zero exit status.
 #include "calibrate_command.h"
 #include "characterize_command.h"
+#include "convert_command.h"
 #include "inspect_command.h"
 #include "measure_command.h"
 #include "normalize_command.h"
@@ -41,8 +42,9 @@ int main(int argc, char** argv) {
   app.add_flag("-v,--verbose", verbose, "Debug messages");
   app.add_option("-j,--threads", threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   uint64_t max_image_mb = xgauge::kDefaultTiffMemoryLimit >> 20;
-  app.add_option("--max-image-mb", max_image_mb,
-                 "Refuse TIFF files that would need more memory than this to read (MiB)")
+  app.add_option(
+         "--max-image-mb", max_image_mb,
+         "Refuse radiograph files (any format) that would need more memory than this to read (MiB)")
       ->check(CLI::Range(uint64_t{1}, uint64_t{1} << 20))
       ->capture_default_str();
 
@@ -50,6 +52,8 @@ int main(int argc, char** argv) {
   xgauge::cli::addRenderCommand(app, render);
   xgauge::cli::GradientArguments gradients;
   xgauge::cli::addGradientCommand(app, gradients);
+  xgauge::cli::ConvertArguments convert;
+  xgauge::cli::addConvertCommand(app, convert);
   xgauge::cli::NormalizeArguments normalize;
   xgauge::cli::addNormalizeCommand(app, normalize);
   xgauge::cli::MeasureArguments measure;
@@ -89,6 +93,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("check-gradients")) return xgauge::cli::runGradientCheck(gradients);
     if (app.got_subcommand("simulate")) xgauge::cli::runSimulate(simulate);
     if (app.got_subcommand("normalize")) xgauge::cli::runNormalize(normalize);
+    if (app.got_subcommand("convert")) xgauge::cli::runConvert(convert);
     if (app.got_subcommand("measure")) return xgauge::cli::runMeasure(measure);
     if (app.got_subcommand("material")) xgauge::cli::runMaterial(material);
     if (app.got_subcommand("study")) xgauge::cli::runStudyCommand(study);

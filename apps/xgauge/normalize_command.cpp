@@ -5,6 +5,7 @@
 #include "xgauge/image/preview.h"
 #include "xgauge/image/pyramid.h"
 #include "xgauge/image/radiograph.h"
+#include "xgauge/image/radiograph_file.h"
 #include "xgauge/image/stats.h"
 #include "xgauge/image/tiff.h"
 
@@ -19,9 +20,12 @@ void addNormalizeCommand(CLI::App& app, NormalizeArguments& args) {
       app.add_subcommand("normalize",
                          "Normalize a raw radiograph: dark/flat correction, then a white region "
                          "(thesis eq. 3.9, docs/method.md)");
-  cmd->add_option("raw", args.raw, "Raw radiograph (TIFF)")->required();
-  auto* dark = cmd->add_option("--dark", args.dark, "Dark frame (TIFF)");
-  auto* flat = cmd->add_option("--flat", args.flat, "Flat (open-beam) frame (TIFF)");
+  cmd->add_option("raw", args.raw,
+                  "Raw radiograph (TIFF, raw + sidecar, NXtomo#selector or DICONDE)")
+      ->required();
+  auto* dark = cmd->add_option("--dark", args.dark, "Dark frame (any radiograph format)");
+  auto* flat =
+      cmd->add_option("--flat", args.flat, "Flat (open-beam) frame (any radiograph format)");
   dark->needs(flat);
   flat->needs(dark);
   cmd->add_option("--white", args.white, "Open-beam region x y width height: divide by its mean, clamp to 1")
@@ -39,14 +43,15 @@ void runNormalize(const NormalizeArguments& args) {
   if (args.dark.empty() && args.white.empty())
     fail("give --dark and --flat, or --white, or both: otherwise there is nothing to normalize by");
   std::optional<Image> dark, flat;
-  if (!args.dark.empty()) dark = readTiff(args.dark), flat = readTiff(args.flat);
+  if (!args.dark.empty())
+    dark = readRadiograph(args.dark).image, flat = readRadiograph(args.flat).image;
   std::optional<PixelRect> white;
   if (!args.white.empty()) white = PixelRect{args.white[0], args.white[1], args.white[2], args.white[3]};
   RadiographFrames frames;
   frames.dark = dark ? &*dark : nullptr;
   frames.flat = flat ? &*flat : nullptr;
-  NormalizedRadiograph normalized =
-      normalizeRadiograph(readTiff(args.raw), frames, white, ClampPolicy::kNone, args.raw);
+  NormalizedRadiograph normalized = normalizeRadiograph(readRadiograph(args.raw).image, frames,
+                                                        white, ClampPolicy::kNone, args.raw);
   if (dark)
     spdlog::info("flat-field corrected; {} bad pixels repaired from their neighbours",
                  normalized.repaired_pixels);

@@ -20,6 +20,7 @@
 #include "xgauge/core/output.h"
 #include "xgauge/core/progress.h"
 #include "xgauge/geometry/part_model.h"
+#include "xgauge/image/radiograph_file.h"
 #include "xgauge/image/tiff.h"
 #include "xgauge/lab/dataset.h"
 #include "xgauge/lab/recipe.h"
@@ -471,16 +472,31 @@ PYBIND11_MODULE(_xgauge, m) {
       "The least level of a message that is shown on stderr and passed to a progress callback");
 
   m.def(
-      "read_tiff",
+      "read_radiograph",
       [](const fs::path& path) {
-        Image image;
+        RadiographFile file;
         {
           py::gil_scoped_release release;
-          image = readTiff(path);
+          file = readRadiograph(path);
         }
-        return toNumpy(std::move(image));
+        return py::make_tuple(toNumpy(std::move(file.image)), file.frames, toString(file.format));
       },
-      py::arg("path"), "The TIFF's first image as float32 (rows, columns), without a copy");
+      py::arg("path"),
+      "A radiograph file of any format xgauge reads (TIFF, raw + sidecar, NXtomo with a "
+      "'#selector', DICONDE) as (image float32 (rows, columns), frames averaged, format name)");
+  m.def(
+      "read_tiff",
+      [](const fs::path& path) {
+        RadiographFile file;
+        {
+          py::gil_scoped_release release;
+          file = readRadiograph(path);
+        }
+        return toNumpy(std::move(file.image));
+      },
+      py::arg("path"),
+      "A radiograph as float32 (rows, columns), without a copy: a TIFF (one page, or the mean of "
+      "its pages), or any other format read_radiograph reads");
   m.def(
       "write_tiff",
       [](const fs::path& path,

@@ -41,3 +41,18 @@ def test_errors_name_the_file(tmp_path):
         xgauge.read_tiff(tmp_path / "nope.tif")
     with pytest.raises(ValueError, match="2-D"):
         xgauge.write_tiff(tmp_path / "b.tif", np.ones(5, np.float32))
+
+
+def test_read_radiograph_reads_raw_with_a_sidecar(tmp_path):
+    image = (np.arange(12).reshape(3, 4) * 1000).astype(">u2")
+    (tmp_path / "a.raw").write_bytes(b"HDR" + image.tobytes())
+    (tmp_path / "a.raw.ini").write_text(
+        "[raw]\nwidth = 4\nheight = 3\ntype = uint16\nbyte_order = big\noffset = 3\n")
+    back, frames, fmt = xgauge.read_radiograph(tmp_path / "a.raw")
+    assert fmt == "raw" and frames == 1
+    assert np.array_equal(back, image.astype(np.float32))
+    # read_tiff reads every format too.
+    assert np.array_equal(xgauge.read_tiff(tmp_path / "a.raw"), back)
+    with pytest.raises(xgauge.Error, match="did you mean 'width'"):
+        (tmp_path / "a.raw.ini").write_text("[raw]\nwidht = 4\n")
+        xgauge.read_radiograph(tmp_path / "a.raw")

@@ -1,4 +1,4 @@
-"""xgauge from Python: TIFFs as numpy, the renderer and its exact
+"""xgauge from Python: radiographs (TIFF, raw, NXtomo, DICONDE) as numpy, the renderer and its exact
 derivatives, measurements as `xgauge measure` makes them (docs/python.md).
 
 Images are numpy float32 arrays of shape (rows, columns), row 0 the top of
@@ -11,11 +11,12 @@ library's message. Long calls release the GIL.
 import json
 import os
 
-from ._xgauge import Error, Measurement, __version__, read_tiff, set_log_level, write_tiff
+from ._xgauge import (Error, Measurement, __version__, read_radiograph, read_tiff, set_log_level,
+                      write_tiff)
 from . import _xgauge
 
 __all__ = ["Error", "Measurement", "MeasurementSummary", "Rendering", "__version__", "calibrate",
-           "measure", "read_tiff", "render", "set_log_level", "simulate", "write_tiff"]
+           "measure", "read_radiograph", "read_tiff", "render", "set_log_level", "simulate", "write_tiff"]
 
 
 class Rendering:

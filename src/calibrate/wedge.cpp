@@ -5,7 +5,7 @@
 #include "xgauge/core/config.h"
 #include "xgauge/image/blur.h"
 #include "xgauge/image/radiograph.h"
-#include "xgauge/image/tiff.h"
+#include "xgauge/image/radiograph_file.h"
 #include "xgauge/measure/job.h"
 #include "xgauge/xray/detector_file.h"
 #include "xgauge/xray/machine.h"
@@ -347,8 +347,9 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   // itself, and says so clearly when there is none); remove the scatter.
   const RadiographSpec& spec = job.radiograph;
   std::optional<Image> dark, flat;
-  if (!spec.dark.empty()) dark = readTiff(spec.dark), flat = readTiff(spec.flat);
-  Image raw = readTiff(spec.image);
+  if (!spec.dark.empty())
+    dark = readRadiograph(spec.dark).image, flat = readRadiograph(spec.flat).image;
+  Image raw = readRadiograph(spec.image).image;
   if (raw.width() != machine.columns || raw.height() != machine.rows)
     fail("{} is {}x{} pixels but the machine's detector is {}x{}", name, raw.width(), raw.height(),
          machine.columns, machine.rows);
@@ -362,7 +363,7 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
                  machine.column_crosstalk);
   std::optional<Image> previous;
   if (!spec.previous.empty()) {
-    previous = readTiff(spec.previous);
+    previous = readRadiograph(spec.previous).image;
     frames.previous = &*previous;
     frames.previous_name = spec.previous.string();
     frames.lag_fraction = machine.lag_fraction;

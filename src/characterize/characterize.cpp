@@ -3,7 +3,7 @@
 
 #include "xgauge/core/error.h"
 #include "xgauge/image/bad_pixels.h"
-#include "xgauge/image/tiff.h"
+#include "xgauge/image/radiograph_file.h"
 #include "xgauge/version.h"
 #include "xgauge/xray/machine.h"
 
@@ -44,9 +44,9 @@ std::vector<fs::path> fileList(const ConfigNode& node, const fs::path& folder) {
 Image readInput(const fs::path& file, const Machine& machine, Characterization& c) {
   std::string sha;
   const ExpectedImageSize size{machine.columns, machine.rows, "the machine's detector"};
-  Image image = readTiff(file, &sha, &size);
+  RadiographFile read = readRadiograph(file, &sha, &size);
   c.inputs.push_back({file.string(), sha});
-  return image;
+  return std::move(read.image);
 }
 
 Image meanOf(const std::vector<Image>& frames) {

@@ -1,5 +1,6 @@
 #include "xgauge/image/tiff.h"
 
+#include "frames.h"
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/core/digest.h"
 #include "xgauge/core/error.h"
@@ -172,10 +173,7 @@ std::string describePhotometric(uint16_t photometric) {
 // strip or tile buffer); setTiffMemoryLimit() changes it.
 std::atomic<uint64_t> memory_limit{kDefaultTiffMemoryLimit};
 
-std::string mebibytes(uint64_t bytes) {
-  const double mib = static_cast<double>(bytes) / (1024.0 * 1024.0);
-  return mib < 10.0 ? fmt::format("{:.1f} MiB", mib) : fmt::format("{:.0f} MiB", mib);
-}
+using frames::mebibytes;
 
 // How many bytes of decoded pixels one byte of compressed data can give at
 // most. Deflate's
@@ -249,46 +247,16 @@ void checkDeclaredSize(TIFF* tif, uint32_t width, uint32_t height, size_t sample
            width, height, sample_bytes, needed, stored);
 }
 
-// Converts `count` samples to floats, remembering the first pixel (in
-// row-major order) that a radiograph cannot hold.
-template <typename Sample>
-struct SampleConverter {
-  int64_t bad_index = std::numeric_limits<int64_t>::max();
-  std::string bad_message;
-
-  void convert(const unsigned char* in, float* out, int count, int x0, int y, int width) {
-    for (int i = 0; i < count; ++i) {
-      Sample value;
-      std::memcpy(&value, in + size_t(i) * sizeof(Sample), sizeof(Sample));
-      if constexpr (std::is_floating_point_v<Sample>) {
-        const bool finite = std::isfinite(value);
-        bool too_large = false;
-        if constexpr (sizeof(Sample) > sizeof(float))
-          too_large = finite && std::abs(value) > static_cast<Sample>(std::numeric_limits<float>::max());
-        if (!finite || too_large) {
-          const int64_t index = int64_t{y} * width + x0 + i;
-          if (index < bad_index) {
-            bad_index = index;
-            bad_message =
-                finite ? fmt::format("pixel ({}, {}) = {} is beyond the float range", x0 + i, y, value)
-                       : fmt::format("pixel ({}, {}) is {}: a radiograph must hold finite values",
-                                     x0 + i, y, value);
-          }
-        }
-      }
-      out[i] = static_cast<float>(value);
-    }
-  }
-};
-
-// Decodes the first directory strip by strip (or tile by tile) straight into
-// a float image, so no more than one block of raw samples is held at once.
+// Decodes the current directory strip by strip (or tile by tile) straight
+// into a float image, so no more than one block of raw samples is held at
+// once. `frame_label` names the page in a bad pixel's message.
 template <typename Sample>
 Image readSamples(TIFF* tif, uint32_t width, uint32_t height, const TiffMessages& messages,
-                  const SourceLocation& where) {
+                  const SourceLocation& where, const std::string& frame_label) {
   const int w = static_cast<int>(width), h = static_cast<int>(height);
   Image image(w, h);
-  SampleConverter<Sample> converter;
+  frames::SampleConverter<Sample> converter;
+  converter.frame_label = frame_label;
   const size_t row_bytes = size_t{width} * sizeof(Sample);
   if (TIFFIsTiled(tif)) {
     uint32_t tile_width = 0, tile_height = 0;
@@ -331,7 +299,7 @@ Image readSamples(TIFF* tif, uint32_t width, uint32_t height, const TiffMessages
       }
     }
   }
-  if (!converter.bad_message.empty()) failAt(where, "{}", converter.bad_message);
+  converter.check(where);
   return image;
 }
 
@@ -344,8 +312,74 @@ void setTiffMemoryLimit(uint64_t bytes) {
 
 uint64_t tiffMemoryLimit() { return memory_limit.load(); }
 
+namespace {
+
+// What one page (directory) declares; every page of a file must declare the
+// same.
+struct PageLayout {
+  uint32_t width = 0, height = 0;
+  uint16_t bits = 1, sample_format = SAMPLEFORMAT_UINT;
+  bool operator==(const PageLayout&) const = default;
+};
+
+// Reads and checks the current directory's layout; `page_label` ("" for the
+// first page, " (page 3)" after) goes into the messages.
+PageLayout readLayout(TIFF* tif, const TiffMessages& messages, const SourceLocation& where,
+                      const std::string& page_label) {
+  PageLayout layout;
+  if (!TIFFGetField(tif, TIFFTAG_IMAGEWIDTH, &layout.width) ||
+      !TIFFGetField(tif, TIFFTAG_IMAGELENGTH, &layout.height))
+    failAt(where, "corrupt TIFF{}: no image size{}", page_label, libtiffSays(messages));
+  uint16_t samples_per_pixel = 1;
+  TIFFGetFieldDefaulted(tif, TIFFTAG_SAMPLESPERPIXEL, &samples_per_pixel);
+  TIFFGetFieldDefaulted(tif, TIFFTAG_BITSPERSAMPLE, &layout.bits);
+  TIFFGetFieldDefaulted(tif, TIFFTAG_SAMPLEFORMAT, &layout.sample_format);
+  if (samples_per_pixel != 1)
+    failAt(where,
+           "{} samples per pixel{} (colour or extra channels); only single-channel (grey) "
+           "radiographs are supported",
+           samples_per_pixel, page_label);
+  uint16_t photometric = PHOTOMETRIC_MINISBLACK;
+  TIFFGetField(tif, TIFFTAG_PHOTOMETRIC, &photometric);
+  if (photometric != PHOTOMETRIC_MINISBLACK)
+    failAt(where, "unsupported photometric interpretation {}{}; only MinIsBlack grey is supported",
+           describePhotometric(photometric), page_label);
+  if (layout.width == 0 || layout.height == 0)
+    failAt(where, "the image{} has zero size ({}x{})", page_label, layout.width, layout.height);
+  if (layout.width > uint32_t{std::numeric_limits<int>::max()} ||
+      layout.height > uint32_t{std::numeric_limits<int>::max()})
+    failAt(where, "the file declares {}x{} pixels{}: too large", layout.width, layout.height,
+           page_label);
+  const bool supported =
+      (layout.sample_format == SAMPLEFORMAT_UINT &&
+       (layout.bits == 8 || layout.bits == 16 || layout.bits == 32)) ||
+      (layout.sample_format == SAMPLEFORMAT_IEEEFP && (layout.bits == 32 || layout.bits == 64));
+  if (!supported)
+    failAt(where,
+           "unsupported samples{}: {} (supported: 8-, 16- or 32-bit unsigned integer, 32- or "
+           "64-bit float)",
+           page_label, describeSamples(layout.bits, layout.sample_format));
+  return layout;
+}
+
+Image readPage(TIFF* tif, const PageLayout& layout, const TiffMessages& messages,
+               const SourceLocation& where, const std::string& frame_label) {
+  const uint32_t w = layout.width, h = layout.height;
+  if (layout.sample_format == SAMPLEFORMAT_UINT && layout.bits == 8)
+    return readSamples<uint8_t>(tif, w, h, messages, where, frame_label);
+  if (layout.sample_format == SAMPLEFORMAT_UINT && layout.bits == 16)
+    return readSamples<uint16_t>(tif, w, h, messages, where, frame_label);
+  if (layout.sample_format == SAMPLEFORMAT_UINT && layout.bits == 32)
+    return readSamples<uint32_t>(tif, w, h, messages, where, frame_label);
+  if (layout.sample_format == SAMPLEFORMAT_IEEEFP && layout.bits == 32)
+    return readSamples<float>(tif, w, h, messages, where, frame_label);
+  return readSamples<double>(tif, w, h, messages, where, frame_label);
+}
+
+}  // namespace
+
 Image readTiff(const std::filesystem::path& path, std::string* sha256,
-               const ExpectedImageSize* expected) {
+               const ExpectedImageSize* expected, int* frames_averaged) {
   const SourceLocation where = SourceLocation::inFile(path.string());
   std::error_code ec;
   if (!std::filesystem::exists(path, ec))
@@ -356,66 +390,52 @@ Image readTiff(const std::filesystem::path& path, std::string* sha256,
   const TiffHandle tif = openTiffForReading(path, messages, sha256, where);
   if (!tif) failAt(where, "not a readable TIFF file{}", libtiffSays(messages));
 
-  // Check the layout before touching the pixels.
-  uint32_t width = 0, height = 0;
-  if (!TIFFGetField(tif.get(), TIFFTAG_IMAGEWIDTH, &width) ||
-      !TIFFGetField(tif.get(), TIFFTAG_IMAGELENGTH, &height))
-    failAt(where, "corrupt TIFF: no image size{}", libtiffSays(messages));
-  uint16_t samples_per_pixel = 1, bits = 1, sample_format = SAMPLEFORMAT_UINT;
-  TIFFGetFieldDefaulted(tif.get(), TIFFTAG_SAMPLESPERPIXEL, &samples_per_pixel);
-  TIFFGetFieldDefaulted(tif.get(), TIFFTAG_BITSPERSAMPLE, &bits);
-  TIFFGetFieldDefaulted(tif.get(), TIFFTAG_SAMPLEFORMAT, &sample_format);
-  if (samples_per_pixel != 1)
-    failAt(where,
-           "{} samples per pixel (colour or extra channels); only single-channel (grey) "
-           "radiographs are supported",
-           samples_per_pixel);
-  uint16_t photometric = PHOTOMETRIC_MINISBLACK;
-  TIFFGetField(tif.get(), TIFFTAG_PHOTOMETRIC, &photometric);
-  if (photometric != PHOTOMETRIC_MINISBLACK)
-    failAt(where, "unsupported photometric interpretation {}; only MinIsBlack grey is supported",
-           describePhotometric(photometric));
-  if (width == 0 || height == 0) failAt(where, "the image has zero size ({}x{})", width, height);
-  if (width > uint32_t{std::numeric_limits<int>::max()} ||
-      height > uint32_t{std::numeric_limits<int>::max()})
-    failAt(where, "the file declares {}x{} pixels: too large", width, height);
-  if (expected && (width != uint32_t(expected->width) || height != uint32_t(expected->height)))
-    failAt(where, "is {}x{} pixels but {} is {}x{}", width, height, expected->what,
+  // Check the first page's layout before touching the pixels.
+  const PageLayout first = readLayout(tif.get(), messages, where, "");
+  if (expected &&
+      (first.width != uint32_t(expected->width) || first.height != uint32_t(expected->height)))
+    failAt(where, "is {}x{} pixels but {} is {}x{}", first.width, first.height, expected->what,
            expected->width, expected->height);
-  if (!TIFFLastDirectory(tif.get()))
-    failAt(where,
-           "the file holds more than one image (a multi-page TIFF); a radiograph file must hold "
-           "exactly one");
-
-  const bool supported =
-      (sample_format == SAMPLEFORMAT_UINT && (bits == 8 || bits == 16 || bits == 32)) ||
-      (sample_format == SAMPLEFORMAT_IEEEFP && (bits == 32 || bits == 64));
-  if (!supported)
-    failAt(where,
-           "unsupported samples: {} (supported: 8-, 16- or 32-bit unsigned integer, 32- or "
-           "64-bit float)",
-           describeSamples(bits, sample_format));
   std::error_code size_error;
-  const uintmax_t file_bytes = std::filesystem::file_size(path, size_error);
-  checkDeclaredSize(tif.get(), width, height, bits / 8u,
-                    size_error ? std::numeric_limits<uint64_t>::max() : file_bytes, messages,
-                    where);
+  const uintmax_t file_size = std::filesystem::file_size(path, size_error);
+  const uint64_t file_bytes = size_error ? std::numeric_limits<uint64_t>::max() : file_size;
 
-  Image image;
-  if (sample_format == SAMPLEFORMAT_UINT && bits == 8)
-    image = readSamples<uint8_t>(tif.get(), width, height, messages, where);
-  else if (sample_format == SAMPLEFORMAT_UINT && bits == 16)
-    image = readSamples<uint16_t>(tif.get(), width, height, messages, where);
-  else if (sample_format == SAMPLEFORMAT_UINT && bits == 32)
-    image = readSamples<uint32_t>(tif.get(), width, height, messages, where);
-  else if (sample_format == SAMPLEFORMAT_IEEEFP && bits == 32)
-    image = readSamples<float>(tif.get(), width, height, messages, where);
-  else
-    image = readSamples<double>(tif.get(), width, height, messages, where);
+  // Page after page: repeated frames of one size and type, averaged.
+  frames::FrameMean mean;
+  for (int page = 1;; ++page) {
+    const std::string label = page == 1 ? "" : fmt::format(" (page {})", page);
+    if (page > 1) {
+      const PageLayout layout = readLayout(tif.get(), messages, where, label);
+      if (!(layout == first))
+        failAt(where,
+               "page {} is {}x{} pixels of {} but page 1 is {}x{} of {}: the pages of a "
+               "multi-page TIFF must be repeated frames of one size and sample type (they are "
+               "averaged)",
+               page, layout.width, layout.height,
+               describeSamples(layout.bits, layout.sample_format), first.width, first.height,
+               describeSamples(first.bits, first.sample_format));
+    }
+    checkDeclaredSize(tif.get(), first.width, first.height, first.bits / 8u, file_bytes, messages,
+                      where);
+    if (page > 1) {
+      const tmsize_t block =
+          TIFFIsTiled(tif.get()) ? TIFFTileSize(tif.get()) : TIFFStripSize(tif.get());
+      frames::checkMemory(where, first.width, first.height, static_cast<uint64_t>(page),
+                          static_cast<uint64_t>(std::max<tmsize_t>(block, 0)));
+    }
+    mean.add(readPage(
+        tif.get(), first, messages, where,
+        page == 1 && TIFFLastDirectory(tif.get()) ? "" : fmt::format(" of page {}", page)));
+    if (TIFFLastDirectory(tif.get())) break;
+    if (page == std::numeric_limits<int>::max() || !TIFFReadDirectory(tif.get()))
+      failAt(where, "cannot read page {} of the multi-page TIFF{}", page + 1,
+             libtiffSays(messages));
+  }
+  if (frames_averaged) *frames_averaged = mean.count();
 
   for (const std::string& warning : messages.warnings)
     spdlog::debug("{}: libtiff warning: {}", path.string(), warning);
-  return image;
+  return mean.take();
 }
 
 void writeTiff(const std::filesystem::path& path, const Image& image, TiffFormat format) {

@@ -4,8 +4,8 @@
 
 #include "xgauge/core/config.h"
 #include "xgauge/image/pyramid.h"
+#include "xgauge/image/radiograph_file.h"
 #include "xgauge/image/stats.h"
-#include "xgauge/image/tiff.h"
 
 #include <spdlog/spdlog.h>
 
@@ -95,13 +95,16 @@ PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
   return out;
 }
 
-Image readInputTiff(const std::filesystem::path& path, const Machine& machine,
-                    std::map<std::string, std::string>& sha256) {
+Image readInputRadiograph(const std::filesystem::path& path, const Machine& machine,
+                          std::map<std::string, std::string>& sha256) {
   std::string digest;
   const ExpectedImageSize detector{machine.columns, machine.rows, "the machine's detector"};
-  Image image = readTiff(path, &digest, &detector);
+  RadiographFile file = readRadiograph(path, &digest, &detector);
+  if (file.frames > 1)
+    spdlog::info("{}: the mean of {} frames ({})", path.string(), file.frames,
+                 toString(file.format));
   sha256[path.string()] = digest;
-  return image;
+  return std::move(file.image);
 }
 
 std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
@@ -111,7 +114,8 @@ std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
   std::map<std::filesystem::path, Image> frames;
   auto frame = [&](const std::filesystem::path& path) -> const Image& {
     auto it = frames.find(path);
-    if (it == frames.end()) it = frames.emplace(path, readInputTiff(path, machine, sha256)).first;
+    if (it == frames.end())
+      it = frames.emplace(path, readInputRadiograph(path, machine, sha256)).first;
     return it->second;
   };
   std::set<std::filesystem::path> previous_frames;
@@ -135,10 +139,10 @@ std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
       given.lag_fraction = machine.lag_fraction;
       given.lag_fraction_uncertainty = machine.lagFractionUncertainty();
     }
-    out.push_back(std::make_shared<const PreparedRadiograph>(
-        prepareRadiograph(previous_frames.count(spec.image) ? Image(frame(spec.image))
-                                                            : readInputTiff(spec.image, machine, sha256),
-                          given, spec, machine)));
+    out.push_back(std::make_shared<const PreparedRadiograph>(prepareRadiograph(
+        previous_frames.count(spec.image) ? Image(frame(spec.image))
+                                          : readInputRadiograph(spec.image, machine, sha256),
+        given, spec, machine)));
   }
   return out;
 }

@@ -307,8 +307,8 @@ std::shared_ptr<const PreparedRadiograph> PreparedShots::get(const RadiographSpe
     RadiographFrames frames;
     if (!spec.dark.empty()) {
       if (!dark_)
-        dark_ = readInputTiff(spec.dark, machine_, sha256_),
-        flat_ = readInputTiff(spec.flat, machine_, sha256_);
+        dark_ = readInputRadiograph(spec.dark, machine_, sha256_),
+        flat_ = readInputRadiograph(spec.flat, machine_, sha256_);
       frames.dark = &*dark_;
       frames.flat = &*flat_;
       frames.column_crosstalk = machine_.column_crosstalk;
@@ -318,16 +318,17 @@ std::shared_ptr<const PreparedRadiograph> PreparedShots::get(const RadiographSpe
     // read raw for its lag.
     std::optional<Image> previous;
     if (!spec.previous.empty()) {
-      previous = readInputTiff(spec.previous, machine_, sha256_);
+      previous = readInputRadiograph(spec.previous, machine_, sha256_);
       frames.previous = &*previous;
       frames.previous_name = spec.previous.string();
       frames.lag_fraction = machine_.lag_fraction;
       frames.lag_fraction_uncertainty = machine_.lagFractionUncertainty();
     }
     it = prepared_
-             .emplace(spec.image.string(),
-                      std::make_shared<const PreparedRadiograph>(prepareRadiograph(
-                          readInputTiff(spec.image, machine_, sha256_), frames, spec, machine_)))
+             .emplace(
+                 spec.image.string(),
+                 std::make_shared<const PreparedRadiograph>(prepareRadiograph(
+                     readInputRadiograph(spec.image, machine_, sha256_), frames, spec, machine_)))
              .first;
   }
   return it->second;

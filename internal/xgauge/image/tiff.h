@@ -19,7 +19,11 @@
 
 namespace xgauge {
 
-// Reads the first image (directory) of a TIFF or BigTIFF file.
+// Reads a TIFF or BigTIFF file: its one image (directory), or the mean of
+// its pages when it holds several (repeated frames of one detector, all of
+// the same size and sample type; `frames_averaged` says how many). One page
+// is returned exactly as converted below; several are summed in double and
+// divided once (image/radiograph_file.h reads every radiograph format).
 //
 // Accepted: SamplesPerPixel 1, photometric MinIsBlack (or the tag absent), and
 // samples that are 8-, 16- or 32-bit unsigned integers or 32- or 64-bit IEEE
@@ -31,11 +35,12 @@ namespace xgauge {
 // Throws Error (naming the file) when the file is missing, not a TIFF or
 // corrupt (with libtiff's message), has more than one sample per pixel, an
 // unsupported bit depth or sample format (saying which), another photometric
-// interpretation (palette, MinIsWhite, ...), more than one image (page), zero
-// size, a declared size beyond the memory limit below or beyond what the
-// file's bytes can hold (checked before any pixel buffer is allocated), or
-// a float pixel that is NaN, infinite or beyond the float range (naming the
-// first such pixel "(x, y)" in row-major order).
+// interpretation (palette, MinIsWhite, ...), pages of different sizes or
+// sample types (naming the page), zero size, a declared size beyond the
+// memory limit below or beyond what the file's bytes can hold (checked
+// before any pixel buffer is allocated, page by page), or a float pixel that
+// is NaN, infinite or beyond the float range (naming the first such pixel
+// "(x, y)" in row-major order, and its page in a multi-page file).
 // With `sha256`, also the SHA-256 of the file's bytes (core/digest.h), read
 // through the same open file.
 // With `expected`, a file declaring another size is refused before any
@@ -45,12 +50,15 @@ struct ExpectedImageSize {
   std::string what;  // e.g. "the machine's detector"
 };
 Image readTiff(const std::filesystem::path& path, std::string* sha256 = nullptr,
-               const ExpectedImageSize* expected = nullptr);
+               const ExpectedImageSize* expected = nullptr, int* frames_averaged = nullptr);
 
-// The most memory one readTiff() may allocate for a file: the image as 32-bit
-// floats plus one strip or tile buffer, held together while decoding. The
-// default is what a 16384 x 16384 radiograph needs with strips or tiles of up
-// to 64 MiB (1088 MiB); the CLI sets it with --max-image-mb.
+// The most memory one read of a radiograph file may allocate, by any reader
+// (TIFF, raw, NXtomo, DICONDE): the image as 32-bit floats plus the
+// reader's buffer (one strip or tile, one frame of stored samples), held
+// together while decoding; averaging several frames also holds the previous
+// frame and a sum in double (16 bytes a pixel in all). The default is what a
+// 16384 x 16384 radiograph needs with strips or tiles of up to 64 MiB
+// (1088 MiB); the CLI sets it with --max-image-mb.
 inline constexpr uint64_t kDefaultTiffMemoryLimit =
     uint64_t{16384} * 16384 * sizeof(float) + (uint64_t{64} << 20);
 void setTiffMemoryLimit(uint64_t bytes);

@@ -83,10 +83,12 @@ MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
                                         const std::filesystem::path& job_file,
                                         bool needs_material);
 
-// Reads a TIFF once, recording its SHA-256 in `sha256` (keyed by path).
-// Refuses, before decoding, an image whose size is not the machine's.
-Image readInputTiff(const std::filesystem::path& path, const Machine& machine,
-                    std::map<std::string, std::string>& sha256);
+// Reads a radiograph file of any format (image/radiograph_file.h; the mean
+// of its frames when it holds several) once, recording its SHA-256 in
+// `sha256` (keyed by the path as given, NXtomo selector included). Refuses,
+// before decoding, an image whose size is not the machine's.
+Image readInputRadiograph(const std::filesystem::path& path, const Machine& machine,
+                          std::map<std::string, std::string>& sha256);
 
 // Reads and prepares every radiograph of `job` from their files, each file
 // (dark and flat frames shared between radiographs too) read once.

@@ -1,4 +1,4 @@
-// libFuzzer target: xgauge::readNxTomo (internal/xgauge/image/nxtomo.h) on
+// libFuzzer target: xgauge::readNxTomoInProcess (internal/xgauge/image/nxtomo.h) on
 // arbitrary bytes written to a scratch .nxs file, with a frame selector
 // chosen by the input's length (none, dark, flat, projection=0, angle=0).
 // Expected outcomes: an Image, or xgauge::Error. Anything else (a crash
@@ -25,7 +25,7 @@ extern "C" int LLVMFuzzerTestOneInput(const uint8_t* data, size_t size) {
   try {
     int frames = 0;
     const xgauge::Image image =
-        xgauge::readNxTomo(path, kSelectors[size % 5], nullptr, nullptr, &frames);
+        xgauge::readNxTomoInProcess(path, kSelectors[size % 5], nullptr, nullptr, &frames);
     FUZZ_ASSERT(image.width() > 0 && image.height() > 0, "readNxTomo returned an empty image");
     FUZZ_ASSERT(image.size() == static_cast<size_t>(image.width()) * image.height(),
                 "image size does not match its dimensions");

@@ -7,8 +7,11 @@
 
 #include <hdf5.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include <algorithm>
+#include <cerrno>
 #include <charconv>
 #include <cmath>
 #include <cstring>
@@ -341,8 +344,8 @@ std::string fileDigest(const fs::path& path, const SourceLocation& where) {
 
 }  // namespace
 
-Image readNxTomo(const fs::path& path, std::string_view selector, std::string* sha256,
-                 const ExpectedImageSize* expected, int* frames_averaged) {
+Image readNxTomoInProcess(const fs::path& path, std::string_view selector, std::string* sha256,
+                          const ExpectedImageSize* expected, int* frames_averaged, bool lock) {
   const SourceLocation where = SourceLocation::inFile(
       selector.empty() ? path.string() : path.string() + "#" + std::string(selector));
   const Selection selection = parseSelector(selector, where);
@@ -352,7 +355,8 @@ Image readNxTomo(const fs::path& path, std::string_view selector, std::string* s
   std::string digest;
   if (sha256) digest = fileDigest(path, where);
 
-  const std::lock_guard lock(hdf5Mutex());
+  std::unique_lock<std::mutex> guard(hdf5Mutex(), std::defer_lock);
+  if (lock) guard.lock();
   H5Eset_auto2(H5E_DEFAULT, nullptr, nullptr);  // nothing printed; messages go into errors
   H5Eclear2(H5E_DEFAULT);
   if (H5Fis_hdf5(path.c_str()) <= 0) failAt(where, "not an HDF5 file{}", hdf5Says());
@@ -427,6 +431,123 @@ Image readNxTomo(const fs::path& path, std::string_view selector, std::string* s
   }
   if (frames_averaged) *frames_averaged = mean.count();
   return mean.take();
+}
+
+namespace {
+
+// The child's answer on the pipe: a status byte, then the error's text, or
+// the digest, the frame count, the size and the pixels.
+bool writeAll(int fd, const void* data, size_t size) {
+  const auto* p = static_cast<const char*>(data);
+  while (size > 0) {
+    const ssize_t n = ::write(fd, p, size);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    p += n, size -= static_cast<size_t>(n);
+  }
+  return true;
+}
+bool readAll(int fd, void* data, size_t size) {
+  auto* p = static_cast<char*>(data);
+  while (size > 0) {
+    const ssize_t n = ::read(fd, p, size);
+    if (n < 0 && errno == EINTR) continue;
+    if (n <= 0) return false;
+    p += n, size -= static_cast<size_t>(n);
+  }
+  return true;
+}
+template <typename T>
+bool writeValue(int fd, const T& v) {
+  return writeAll(fd, &v, sizeof v);
+}
+bool writeString(int fd, const std::string& text) {
+  return writeValue(fd, uint64_t{text.size()}) && writeAll(fd, text.data(), text.size());
+}
+bool readString(int fd, std::string& text, uint64_t limit) {
+  uint64_t n = 0;
+  if (!readAll(fd, &n, sizeof n) || n > limit) return false;
+  text.resize(static_cast<size_t>(n));
+  return readAll(fd, text.data(), text.size());
+}
+
+[[noreturn]] void childReads(int fd, const fs::path& path, std::string_view selector, bool digest,
+                             const ExpectedImageSize* expected) {
+  try {
+    std::string sha;
+    int frames = 0;
+    const Image image =
+        readNxTomoInProcess(path, selector, digest ? &sha : nullptr, expected, &frames, false);
+    const bool ok = writeValue(fd, char{1}) && writeString(fd, sha) && writeValue(fd, frames) &&
+                    writeValue(fd, image.width()) && writeValue(fd, image.height()) &&
+                    writeAll(fd, image.pixels().data(), image.size() * sizeof(float));
+    ::_exit(ok ? 0 : 3);
+  } catch (const Error& e) {
+    ::_exit(writeValue(fd, char{0}) && writeString(fd, e.what()) ? 0 : 3);
+  } catch (...) {
+    ::_exit(4);
+  }
+}
+
+}  // namespace
+
+// libhdf5 1.10 (Debian 12) can crash on a crafted file (scripts/fuzz.sh
+// found a null write in H5G__stab_lookup) before any check of ours can
+// refuse it, so the file is read in a child process: a crash there is the
+// file's error, not the program's end. No maintained library offers this
+// isolation for libhdf5; it costs one fork per NXtomo read.
+Image readNxTomo(const fs::path& path, std::string_view selector, std::string* sha256,
+                 const ExpectedImageSize* expected, int* frames_averaged) {
+  const SourceLocation where = SourceLocation::inFile(
+      selector.empty() ? path.string() : path.string() + "#" + std::string(selector));
+  // No other thread is inside libhdf5 while the child is made, and none
+  // holds the lock the child would need.
+  const std::lock_guard lock(hdf5Mutex());
+  int fds[2];
+  if (::pipe(fds) != 0) failAt(where, "cannot read the file: pipe: {}", std::strerror(errno));
+  const pid_t child = ::fork();
+  if (child < 0) {
+    ::close(fds[0]), ::close(fds[1]);
+    failAt(where, "cannot read the file: fork: {}", std::strerror(errno));
+  }
+  if (child == 0) {
+    ::close(fds[0]);
+    childReads(fds[1], path, selector, sha256 != nullptr, expected);
+  }
+  ::close(fds[1]);
+  char status = -1;
+  std::string text;
+  int frames = 0, width = 0, height = 0;
+  Image image;
+  bool complete = readAll(fds[0], &status, 1);
+  if (complete && status == 0) {
+    complete = readString(fds[0], text, 1 << 20);
+  } else if (complete && status == 1) {
+    complete = readString(fds[0], text, 256) && readAll(fds[0], &frames, sizeof frames) &&
+               readAll(fds[0], &width, sizeof width) && readAll(fds[0], &height, sizeof height) &&
+               width > 0 && height > 0 &&
+               uint64_t(width) * uint64_t(height) * sizeof(float) <= tiffMemoryLimit();
+    if (complete) {
+      image = Image(width, height);
+      complete = readAll(fds[0], image.pixels().data(), image.size() * sizeof(float));
+    }
+  }
+  ::close(fds[0]);
+  int wait_status = 0;
+  while (::waitpid(child, &wait_status, 0) < 0 && errno == EINTR) {
+  }
+  if (WIFSIGNALED(wait_status))
+    failAt(where,
+           "libhdf5 crashed reading the file (signal {}): it is corrupt or not what it claims "
+           "to be",
+           WTERMSIG(wait_status));
+  if (!complete || !WIFEXITED(wait_status) || WEXITSTATUS(wait_status) != 0)
+    failAt(where, "the file could not be read (the reading process ended with status {})",
+           WIFEXITED(wait_status) ? WEXITSTATUS(wait_status) : -1);
+  if (status == 0) throw Error(text);  // the child's error, its location included
+  if (sha256) *sha256 = text;
+  if (frames_averaged) *frames_averaged = frames;
+  return image;
 }
 
 namespace {

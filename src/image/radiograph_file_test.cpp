@@ -416,6 +416,28 @@ TEST(NxTomo, HostileFilesAreRefusedNamingTheDataset) {
   EXPECT_TRUE(contains(message, "fake.nxs: ")) << message;
 }
 
+// A file on which libhdf5 1.10.8 itself crashes (a null write in
+// H5G__stab_lookup, found by scripts/fuzz.sh): read in a child process, the
+// crash is this file's error, and the next read works.
+TEST(NxTomo, AFileThatCrashesLibhdf5IsAnErrorNotACrash) {
+  const std::filesystem::path crafted = std::filesystem::path(XGAUGE_SOURCE_DIR) /
+                                        "fuzz/known/fuzz_nxtomo/libhdf5-1.10.8-segv-local-heap.nxs";
+  ASSERT_TRUE(std::filesystem::exists(crafted));
+  for (const char* selector : {"", "dark", "flat", "projection=0", "angle=0"}) {
+    std::string message;
+    try {
+      readNxTomo(crafted, selector);
+    } catch (const Error& e) {
+      message = e.what();
+    }
+    EXPECT_TRUE(contains(message, "libhdf5-1.10.8-segv-local-heap.nxs"))
+        << selector << ": " << message;
+  }
+  TestFolder folder;
+  writePartialNxTomo(folder / "nokey.nxs", false, 0, 1, 4, 4, true);
+  EXPECT_TRUE(contains(messageOf(folder / "nokey.nxs"), "no dataset"));
+}
+
 // DICONDE -----------------------------------------------------------------
 
 TEST(Diconde, RescaleFramesAndCompressionAreHandled) {

@@ -49,9 +49,19 @@ namespace xgauge {
 // the file stores (checked before reading), a size other than `expected`,
 // a NaN or infinite float sample (naming pixel and frame), or any error
 // libhdf5 reports (with its message). libhdf5 prints nothing.
+//
+// The file is read in a child process: libhdf5 1.10 can crash on a crafted
+// file, and such a crash is thrown as this file's Error ("libhdf5 crashed
+// reading the file").
 Image readNxTomo(const std::filesystem::path& path, std::string_view selector,
                  std::string* sha256 = nullptr, const ExpectedImageSize* expected = nullptr,
                  int* frames_averaged = nullptr);
+
+// The same in this process (`lock`: hold the library's libhdf5 lock): for
+// the fuzz target, which looks for libhdf5's crashes too.
+Image readNxTomoInProcess(const std::filesystem::path& path, std::string_view selector,
+                          std::string* sha256, const ExpectedImageSize* expected,
+                          int* frames_averaged, bool lock = true);
 
 // One frame to write: the image, its image_key (0 projection, 1 flat,
 // 2 dark) and its rotation angle in degrees.

@@ -64,24 +64,9 @@ GradientCheck checkModelGradients(ForwardModel& model, std::span<const double> t
     std::vector<double> coarse, fine;
     difference(i, h, coarse);
     difference(i, 0.5 * h, fine);
-    GradientColumn column;
-    column.name = model.parameters()[static_cast<int>(i)].name;
-    for (double v : coarse) column.scale = std::max(column.scale, std::abs(v));
-    double error2 = 0.0, norm2 = 0.0, error2_all = 0.0, norm2_all = 0.0;
-    for (size_t m = 0; m < r.size(); ++m) {
-      const double fd = fine[m], e = jacobian[m * n + k] - fd;
-      error2_all += e * e, norm2_all += fd * fd;
-      if (std::abs(coarse[m] - fd) > options.agreement * column.scale) {
-        ++column.kinked;
-        continue;
-      }
-      ++column.pixels;
-      error2 += e * e, norm2 += fd * fd;
-      if (column.scale > 0.0) column.worst = std::max(column.worst, std::abs(e) / column.scale);
-    }
-    column.norm_error = norm2 > 0.0 ? std::sqrt(error2 / norm2) : 0.0;
-    column.norm_error_all = norm2_all > 0.0 ? std::sqrt(error2_all / norm2_all) : 0.0;
-    check.columns.push_back(column);
+    check.columns.push_back(compareWithDifferences(
+        model.parameters()[static_cast<int>(i)].name, coarse, fine,
+        [&jacobian, n, k](size_t m) { return jacobian[m * n + k]; }, options.agreement));
   }
   return check;
 }

@@ -14,6 +14,31 @@ double GradientCheck::worst() const {
   return worst;
 }
 
+GradientColumn compareWithDifferences(std::string name, std::span<const double> coarse,
+                                      std::span<const double> fine,
+                                      const std::function<double(size_t)>& analytic,
+                                      double agreement) {
+  XG_CHECK(coarse.size() == fine.size(), "two differences of one column");
+  GradientColumn column;
+  column.name = std::move(name);
+  for (double v : coarse) column.scale = std::max(column.scale, std::abs(v));
+  double error2 = 0.0, norm2 = 0.0, error2_all = 0.0, norm2_all = 0.0;
+  for (size_t m = 0; m < fine.size(); ++m) {
+    const double fd = fine[m], e = analytic(m) - fd;
+    error2_all += e * e, norm2_all += fd * fd;
+    if (std::abs(coarse[m] - fd) > agreement * column.scale) {
+      ++column.kinked;
+      continue;
+    }
+    ++column.pixels;
+    error2 += e * e, norm2 += fd * fd;
+    if (column.scale > 0.0) column.worst = std::max(column.worst, std::abs(e) / column.scale);
+  }
+  column.norm_error = norm2 > 0.0 ? std::sqrt(error2 / norm2) : 0.0;
+  column.norm_error_all = norm2_all > 0.0 ? std::sqrt(error2_all / norm2_all) : 0.0;
+  return column;
+}
+
 GradientCheck checkPartGradients(const Machine& machine, const PartModel& part,
                                  std::span<const double> dimensions, const Vec3& rotation_deg,
                                  const Vec3& translation_mm, const ExponentialSum& material,
@@ -78,31 +103,14 @@ GradientCheck checkPartGradients(const Machine& machine, const PartModel& part,
 
   GradientCheck check;
   for (size_t i = 0; i < theta.size(); ++i) {
-    GradientColumn column;
-    column.name = names[i];
     ImageT<double> coarse, fine;
     if (!difference(i, h[i], coarse) || !difference(i, 0.5 * h[i], fine))
       fail("cannot check gradients: parameter {} at {} +- {} does not give a valid part", names[i],
            theta[i], h[i]);
     const Image& a = analytic.per_parameter[i];
-    for (int y = 0; y < coarse.height(); ++y)
-      for (int x = 0; x < coarse.width(); ++x)
-        column.scale = std::max(column.scale, std::abs(coarse(x, y)));
-    double error2 = 0.0, norm2 = 0.0, error2_all = 0.0, norm2_all = 0.0;
-    for (int y = 0; y < coarse.height(); ++y)
-      for (int x = 0; x < coarse.width(); ++x) {
-        const double fd = fine(x, y), e = static_cast<double>(a(x, y)) - fd;
-        error2_all += e * e, norm2_all += fd * fd;
-        if (std::abs(coarse(x, y) - fd) > 1e-6 * column.scale) {
-          ++column.kinked;
-          continue;
-        }
-        ++column.pixels;
-        error2 += e * e, norm2 += fd * fd;
-        if (column.scale > 0.0) column.worst = std::max(column.worst, std::abs(e) / column.scale);
-      }
-    column.norm_error = norm2 > 0.0 ? std::sqrt(error2 / norm2) : 0.0;
-    column.norm_error_all = norm2_all > 0.0 ? std::sqrt(error2_all / norm2_all) : 0.0;
+    const GradientColumn column = compareWithDifferences(
+        names[i], coarse.pixels(), fine.pixels(),
+        [&a](size_t m) { return static_cast<double>(a.pixels()[m]); }, 1e-6);
     check.columns.push_back(column);
   }
   return check;

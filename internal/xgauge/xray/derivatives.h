@@ -94,6 +94,16 @@ struct GradientCheck {
   double worst() const;
 };
 
+// One column's comparison: the central differences with steps h (`coarse`)
+// and h / 2 (`fine`) against `analytic(m)` for each of their values m; a
+// value is well conditioned where the two differences agree to
+// `agreement` of the column's largest |coarse|. Shared by the render's and
+// the fit's gradient checks (measure/gradient_check.h).
+GradientColumn compareWithDifferences(std::string name, std::span<const double> coarse,
+                                      std::span<const double> fine,
+                                      const std::function<double(size_t)>& analytic,
+                                      double agreement);
+
 // Checks a part model's image derivatives at one pose: the parameters are
 // every dimension (model order) then the pose's rx, ry, rz (deg; R = Rz Ry Rx)
 // and its translation x, y, z (mm); `steps` gives h per parameter (empty: 3e-4

@@ -1,5 +1,7 @@
 #include "xgauge/core/config.h"
 
+#include "xgauge/core/did_you_mean.h"
+
 #include "xgauge/core/digest.h"
 #include "xgauge/core/file.h"
 
@@ -49,22 +51,6 @@ std::string escapeKey(std::string_view key) {
     else out += c;
   }
   return out;
-}
-
-// Levenshtein distance, for "did you mean" hints.
-size_t editDistance(std::string_view a, std::string_view b) {
-  std::vector<size_t> row(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (size_t i = 1; i <= a.size(); ++i) {
-    size_t diagonal = row[0];
-    row[0] = i;
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diagonal = up;
-    }
-  }
-  return row[b.size()];
 }
 
 // A short description of a value for "expected X, got Y" messages: scalars
@@ -387,12 +373,8 @@ void ConfigNode::finish() const {
         ConfigNode(doc_, &item.value(), child).finish();
         continue;
       }
-      std::string hint;
-      size_t best = 3;
-      for (const auto& k : known) {
-        const size_t d = editDistance(item.key(), k);
-        if (d < best) best = d, hint = fmt::format("; did you mean '{}'?", k);
-      }
+      const std::string hint =
+          didYouMean(item.key(), std::vector<std::string_view>(known.begin(), known.end()));
       throw Error(fmt::format("unknown key '{}'{}", item.key(), hint),
                   doc_->locate(child));
     }

@@ -3,6 +3,7 @@
 #include "frames.h"
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/core/config.h"
+#include "xgauge/core/did_you_mean.h"
 #include "xgauge/core/digest.h"
 #include "xgauge/core/error.h"
 
@@ -67,32 +68,6 @@ std::optional<RawSampleType> typeNamed(std::string_view name) {
   if (name == "float32") return RawSampleType::kFloat32;
   if (name == "float64") return RawSampleType::kFloat64;
   return std::nullopt;
-}
-
-size_t editDistance(std::string_view a, std::string_view b) {
-  std::vector<size_t> row(b.size() + 1);
-  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
-  for (size_t i = 1; i <= a.size(); ++i) {
-    size_t diagonal = row[0];
-    row[0] = i;
-    for (size_t j = 1; j <= b.size(); ++j) {
-      const size_t up = row[j];
-      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
-      diagonal = up;
-    }
-  }
-  return row[b.size()];
-}
-
-// "; did you mean 'width'?" for a key within two edits of a known one.
-std::string didYouMean(std::string_view key) {
-  std::string hint;
-  size_t best = 3;
-  for (std::string_view known : kKeys) {
-    const size_t d = editDistance(key, known);
-    if (d < best) best = d, hint = fmt::format("; did you mean '{}'?", known);
-  }
-  return hint;
 }
 
 // The whole file's bytes; `what` names it in errors.
@@ -176,7 +151,8 @@ RawLayout parseIniSidecar(const std::string& text, const fs::path& sidecar) {
       value = value.substr(1, value.size() - 2);
     if (!in_raw) failAt(where(number), "key '{}' before the section [raw]", key.substr(0, 60));
     if (std::find(kKeys.begin(), kKeys.end(), key) == kKeys.end())
-      failAt(where(number), "unknown key '{}'{}", key.substr(0, 60), didYouMean(key));
+      failAt(where(number), "unknown key '{}'{}", key.substr(0, 60),
+             didYouMean(key, {kKeys.begin(), kKeys.end()}));
     if (values.count(key)) failAt(where(number), "key '{}' appears twice", key);
     values[key] = {value, number};
   }

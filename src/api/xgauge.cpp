@@ -124,8 +124,9 @@ int exitStatusOf(const MeasurementResult& result) {
   return std::max(exitCodeFor(decisions), withheld ? kExitInconclusive : kExitConforms);
 }
 
-MeasurementSummary summarize(const ForwardModel& model, const MeasurementResult& result,
-                             const std::optional<DatasetTruth>& truth, const std::string& table) {
+MeasurementSummary summarize(const MeasurementResult& result,
+                             const std::optional<DatasetTruth>& truth, const std::string& table,
+                             const nlohmann::json& json) {
   MeasurementSummary s;
   s.termination = result.status == MeasurementStatus::kMeasured ? TerminationType::kMeasured
                                                                 : TerminationType::kNotMeasured;
@@ -151,7 +152,7 @@ MeasurementSummary summarize(const ForwardModel& model, const MeasurementResult&
   s.final_loss = result.total_loss;
   s.seconds = result.seconds;
   s.exit_status = exitStatusOf(result);
-  MeasurementSummaryBuilder::set(s, table, measurementJson(model, result).dump(2) + "\n");
+  MeasurementSummaryBuilder::set(s, table, json.dump(2) + "\n");
   return s;
 }
 
@@ -199,7 +200,9 @@ MeasurementSummary measureOrThrow(const MeasurementOptions& options) {
     on_stage = [&options](const StageReport& s) { options.on_stage(stageSummary(s)); };
   auto [result, simulated] = measureWithPictures(model, on_stage);
   const std::string table = reportTable(result, truth);
-  MeasurementSummary summary = summarize(model, result, truth, table);
+  // result.json's contents, made once: the summary's ToJson and the file.
+  const nlohmann::json json = measurementJson(model, result);
+  MeasurementSummary summary = summarize(result, truth, table, json);
   spdlog::info("{} evaluations in {:.1f} s; final loss {:.6g}", result.evaluations, result.seconds,
                result.total_loss);
   if (writes) {
@@ -208,7 +211,7 @@ MeasurementSummary measureOrThrow(const MeasurementOptions& options) {
     if (truth)
       for (const auto& [name, value] : truth->dimensions) true_values[name] = value;
     writeMeasurementOutputs(model, result, options.output_folder, options.write_report, true_values,
-                            std::move(simulated));
+                            std::move(simulated), &json);
     const std::string text = log->text();
     log.reset();
     writeFileAtomically(options.output_folder / "measure.log", text + table);

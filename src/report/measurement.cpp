@@ -344,7 +344,8 @@ nlohmann::json measurementContext(const ForwardModel& model) {
 
 void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,
                              const std::filesystem::path& folder, bool html_report,
-                             const nlohmann::json& truth, std::vector<Image> simulated_full) {
+                             const nlohmann::json& truth, std::vector<Image> simulated_full,
+                             const nlohmann::json* result_json) {
   createOutputFolder(folder);
   auto last = std::chrono::steady_clock::now();
   const auto lap = [&last] {  // seconds since the last lap
@@ -374,7 +375,7 @@ void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& resul
   });
   spdlog::debug("outputs: the images written in {:.2f} s", lap());
 
-  const nlohmann::json json = measurementJson(model, result);
+  const nlohmann::json json = result_json ? *result_json : measurementJson(model, result);
   if (html_report) {
     const nlohmann::json data = {
         {"result", json},

@@ -23,10 +23,13 @@ namespace xgauge {
 // shown beside the measured values in the page. `simulated_full`: the
 // final simulated radiographs when the caller has them
 // (simulateRadiographs), else they are rendered here.
+// `result_json`: measurementJson(model, result) when the caller has it
+// already (the front door's summary), else it is made here.
 void writeMeasurementOutputs(ForwardModel& model, const MeasurementResult& result,
                              const std::filesystem::path& folder, bool html_report = true,
                              const nlohmann::json& truth = nullptr,
-                             std::vector<Image> simulated_full = {});
+                             std::vector<Image> simulated_full = {},
+                             const nlohmann::json* result_json = nullptr);
 
 // The final simulated radiograph of each radiograph, whole detector, full
 // size, 2 x 2 samples per pixel: what the outputs and the page show.

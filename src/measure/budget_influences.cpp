@@ -195,6 +195,50 @@ void translations(const InfluenceSource& source, InfluenceMoves& out) {
   }
 }
 
+// The turntable of turned radiographs: each one's angle, and the machine's
+// axis, its point moved across the axis and its direction tilted, each in
+// two directions perpendicular to it (the first in the detector's plane).
+void turntable(const InfluenceSource& source, InfluenceMoves& out) {
+  const MeasurementInputs& inputs = source.inputs;
+  bool turned = false;
+  for (size_t k = 0; k < inputs.job.radiographs.size(); ++k) {
+    const RadiographSpec& spec = inputs.job.radiographs[k];
+    if (spec.pattern != Acquisition::kTurned) continue;
+    turned = true;
+    const double u = spec.angle_uncertainty_deg;
+    withInputs(source, out, Propagation::kIterated, "turn " + spec.name,
+               fmt::format("angle {:.4f} +- {:.2g} deg", spec.angle_deg, u), "deg", u,
+               [k, u](MeasurementInputs& in, double amount) {
+                 in.job.radiographs[k].angle_deg += amount * u;
+               });
+  }
+  if (!turned || !inputs.machine.turntable) return;
+  const Turntable& axis = *inputs.machine.turntable;
+  Vec3 across = axis.direction.cross(Vec3::UnitZ());
+  if (across.norm() < 1e-6) across = axis.direction.cross(Vec3::UnitX());
+  across.normalize();
+  const Vec3 other = axis.direction.cross(across).normalized();
+  const std::pair<const char*, Vec3> ways[] = {{"across the beam", across},
+                                               {"along the beam", other}};
+  for (const auto& [way, e] : ways) {
+    const double u = axis.point_uncertainty_mm;
+    withInputs(source, out, Propagation::kIterated, fmt::format("turntable axis point ({})", way),
+               fmt::format("moved +- {:.2g} mm", u), "mm", u,
+               [e, u](MeasurementInputs& in, double amount) {
+                 in.machine.turntable->point_mm += amount * u * e;
+               });
+    const double t = axis.direction_uncertainty_deg;
+    withInputs(source, out, Propagation::kIterated,
+               fmt::format("turntable axis direction (tilt about the {} direction)", way),
+               fmt::format("tilted +- {:.2g} deg", t), "deg", t,
+               [e, t](MeasurementInputs& in, double amount) {
+                 Turntable& moved = *in.machine.turntable;
+                 moved.direction =
+                     (Eigen::AngleAxisd(amount * t * kDegToRad, e) * moved.direction).normalized();
+               });
+  }
+}
+
 // Radiograph k of `in` with its lag fraction moved by `step`.
 void moveLag(MeasurementInputs& in, size_t k, const PreparedRadiograph& radiograph, double step) {
   auto moved = std::make_shared<PreparedRadiograph>(radiograph);
@@ -279,6 +323,7 @@ constexpr InfluenceEntry kInfluences[] = {
     {"scatter weight, scatter width", scatterComponents},
     {"source-detector distance, pixel pitch", machineGeometry},
     {"translation NAME", translations},
+    {"turn NAME, turntable axis", turntable},
     {"detector lag NAME", detectorLags},
     {"normalisation NAME", normalisations},
 };

@@ -15,6 +15,8 @@ std::string_view acquisitionName(Acquisition pattern) {
       return "rotated";
     case Acquisition::kKnown:
       return "known";
+    case Acquisition::kTurned:
+      return "turned";
   }
   return "?";
 }
@@ -196,18 +198,25 @@ Acquisition patternOf(const ConfigNode& r) {
   if (pattern == "translated") return Acquisition::kTranslated;
   if (pattern == "rotated") return Acquisition::kRotated;
   if (pattern == "known") return Acquisition::kKnown;
-  r.at("pattern").fail(
-      fmt::format("unknown pattern '{}' (known: free, translated, rotated, known)", pattern));
+  if (pattern == "turned") return Acquisition::kTurned;
+  r.at("pattern").fail(fmt::format(
+      "unknown pattern '{}' (known: free, translated, rotated, turned, known)", pattern));
 }
 
-// A translated or rotated radiograph's reference, an earlier one, and a
-// translated one's known move.
+// A translated, rotated or turned radiograph's reference, an earlier one,
+// and a translated or turned one's known move.
 void readReference(const ConfigNode& r, const MeasurementJob& job, RadiographSpec& spec) {
   const std::string ref = r.get<std::string>("reference");
   for (size_t k = 0; k < job.radiographs.size(); ++k)
     if (job.radiographs[k].name == ref) spec.reference = static_cast<int>(k);
   if (spec.reference < 0)
     r.at("reference").fail(fmt::format("no earlier radiograph named '{}'", ref));
+  if (spec.pattern == Acquisition::kTurned) {
+    spec.angle_deg = r.at("angle_deg").number(-360.0, 360.0);
+    if (r.has("angle_uncertainty_deg"))
+      spec.angle_uncertainty_deg = r.at("angle_uncertainty_deg").number(0.0, 10.0);
+    return;
+  }
   if (spec.pattern != Acquisition::kTranslated) return;
   if (job.radiographs[static_cast<size_t>(spec.reference)].pattern == Acquisition::kTranslated)
     r.at("reference")
@@ -241,7 +250,8 @@ RadiographSpec readRadiograph(const ConfigNode& r, const std::filesystem::path& 
   spec.white_region = pixelRectFromConfig(r.at("white_region"));
   if (auto roi = r.find("roi")) spec.roi = pixelRectFromConfig(*roi);
   spec.pattern = patternOf(r);
-  if (spec.pattern == Acquisition::kTranslated || spec.pattern == Acquisition::kRotated)
+  if (spec.pattern == Acquisition::kTranslated || spec.pattern == Acquisition::kRotated ||
+      spec.pattern == Acquisition::kTurned)
     readReference(r, job, spec);
   if (spec.pattern == Acquisition::kKnown) spec.known_pose = poseFromConfig(r.at("pose"));
   return spec;
@@ -274,7 +284,8 @@ void readRefinement(const ConfigNode& root, MeasurementJob& job) {
   // trade; only a view from another direction puts an edge across it.
   int own_poses = 0;
   for (const RadiographSpec& spec : job.radiographs)
-    own_poses += spec.pattern == Acquisition::kFree || spec.pattern == Acquisition::kRotated;
+    own_poses += spec.pattern == Acquisition::kFree || spec.pattern == Acquisition::kRotated ||
+                 spec.pattern == Acquisition::kTurned;
   if (job.refine_material != MaterialRefinement::kNone && job.schedule == ScheduleKind::kThesis)
     refine->fail(
         "the thesis schedule has no least-squares stage to refine the material in (use "
@@ -282,7 +293,8 @@ void readRefinement(const ConfigNode& root, MeasurementJob& job) {
   if (job.refine_material != MaterialRefinement::kNone && own_poses < 2)
     refine->fail(
         "refining the material needs a radiograph that sees the part from another direction "
-        "(a \"rotated\" one, or a second \"free\" one): translated shots alone cannot tell "
+        "(a \"rotated\" or \"turned\" one, or a second \"free\" one): translated shots alone "
+        "cannot tell "
         "the curve from the part's depth");
 }
 

@@ -544,6 +544,7 @@ MeasurementResult runPipeline(ForwardModel& model, std::vector<double> theta,
       case Acquisition::kRotated:
         candidates[static_cast<size_t>(r)] = fitPose(model, theta, runner, schedule.pose, r);
         break;
+      case Acquisition::kTurned:  // its reference's pose turned about the stage axis
       case Acquisition::kKnown:
         break;
     }

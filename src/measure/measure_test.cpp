@@ -2,6 +2,7 @@
 // with no noise and no model error, it must find the dimensions exactly.
 #include "xgauge/measure/measure.h"
 
+#include "core/expect_error.h"
 #include "xgauge/core/config.h"
 #include "xgauge/core/digest.h"
 #include "xgauge/core/progress.h"
@@ -65,15 +66,31 @@ Machine squareDetector(int detector_px) {
   return machine;
 }
 
-// The same on any machine, with `extra` keys of the job (its "dimensions"
-// or "schedule"), the white region and `b_extra` keys of the translated
-// radiograph given.
+// The same on any machine, with the second shot `b` at its pose and with
+// its pattern's keys `b_keys`, `extra` keys of the job (its "dimensions" or
+// "schedule") and the white region given.
+MeasurementResult measureSelfRenderedPair(const fs::path& dir, const Machine& machine,
+                                          const std::string& part_file,
+                                          const std::map<std::string, double>& truth, const Pose& a,
+                                          const Pose& b, const std::string& b_keys,
+                                          const std::string& bounds, const std::string& extra,
+                                          const std::string& white);
+
+// ... with b translated from a by 30 mm along `axis`, `b_extra` keys of
+// the translated radiograph added.
 MeasurementResult measureSelfRender(const fs::path& dir, const Machine& machine,
                                     const std::string& part_file,
                                     const std::map<std::string, double>& truth, const Pose& a,
                                     const Vec3& axis, const std::string& bounds,
                                     const std::string& extra, const std::string& white,
-                                    const std::string& b_extra = "");
+                                    const std::string& b_extra = "") {
+  Pose b = a;
+  b.translation_mm += 30.0 * axis;
+  return measureSelfRenderedPair(
+      dir, machine, part_file, truth, a, b,
+      R"("pattern": "translated", "reference": "a", "distance_mm": 30.0)" + b_extra, bounds, extra,
+      white);
+}
 
 MeasurementResult measureSelfRender(const fs::path& dir, const std::string& part_file,
                                     const std::map<std::string, double>& truth, const Pose& a,
@@ -84,19 +101,17 @@ MeasurementResult measureSelfRender(const fs::path& dir, const std::string& part
                            R"("schedule": ")" + schedule + R"(")", "[4, 4, 30, 30]");
 }
 
-MeasurementResult measureSelfRender(const fs::path& dir, const Machine& machine,
-                                    const std::string& part_file,
-                                    const std::map<std::string, double>& truth, const Pose& a,
-                                    const Vec3& axis, const std::string& bounds,
-                                    const std::string& extra, const std::string& white,
-                                    const std::string& b_extra) {
+MeasurementResult measureSelfRenderedPair(const fs::path& dir, const Machine& machine,
+                                          const std::string& part_file,
+                                          const std::map<std::string, double>& truth, const Pose& a,
+                                          const Pose& b, const std::string& b_keys,
+                                          const std::string& bounds, const std::string& extra,
+                                          const std::string& white) {
   std::ofstream(dir / "machine.json") << machine.toJson().dump();
   const ExponentialSum material({{0.6, 0.03}, {0.3, 0.07}, {0.1, 0.25}});
   std::ofstream(dir / "material.json") << material.toJson().dump();
   const PartModel part = PartModel::load(part_file);
   const TriangleMesh mesh = part.mesh(part.values(truth));
-  Pose b = a;
-  b.translation_mm += 30.0 * axis;
 
   // Noise-free radiographs as the fit's final stage renders them: 2 x 2
   // samples, the edges 8 x 8 where its schedule refines them (schedule.h).
@@ -125,9 +140,7 @@ MeasurementResult measureSelfRender(const fs::path& dir, const Machine& machine,
       {"name": "a", "image": "a.tif", "white_region": )" +
                                          white + R"(, "pattern": "free"},
       {"name": "b", "image": "b.tif", "white_region": )" +
-                                         white + R"(, "pattern": "translated",
-       "reference": "a", "distance_mm": 30.0)" +
-                                         b_extra + R"(}],
+                                         white + ", " + b_keys + R"(}],
     "pose_bounds": )" + bounds + R"(,
     )" + extra + R"(,
     "loss": "l2"})";
@@ -219,6 +232,50 @@ MeasurementResult measureJaw(const fs::path& dir, const std::string& schedule) {
       dir, kRoot + "/parts/prism_jaw.json", kJawTruth, a, axis,
       R"({"rotation_deg": [[-5, 5], [-30, 30], [-5, 5]], "centre_mm": [[-40, 40], [-30, 30], [470, 530]]})",
       schedule);
+}
+
+TEST_F(Measure, ATurnedPairNeedsNoLinearStage) {
+  // The jaw on a turntable: the second shot is the first turned by 12 deg
+  // about the machine's vertical axis, which passes 4 mm beside the part's
+  // centre. The turn alone fixes the scale: no distance is known, and the
+  // second pose has no parameters of its own.
+  Machine machine = squareDetector(320);
+  Turntable axis;
+  axis.point_mm = {-21.0, 0.0, 497.0};
+  axis.direction = Vec3(0.002, 1.0, -0.003).normalized();
+  machine.turntable = axis;
+  const Pose a = Pose::fromEulerDeg({1.5, 12.0, -0.8}, {-25.0, -20.0, 494.0});
+  const Pose b = axis.turn(a, 12.0);
+  const MeasurementResult result = measureSelfRenderedPair(
+      dir_, machine, kRoot + "/parts/prism_jaw.json", kJawTruth, a, b,
+      R"("pattern": "turned", "reference": "a", "angle_deg": 12.0)",
+      R"({"rotation_deg": [[-5, 5], [-30, 30], [-5, 5]], "centre_mm": [[-40, 40], [-30, 30], [470, 530]]})",
+      R"("schedule": "default")", "[4, 4, 30, 30]");
+  for (const auto& d : result.dimensions)
+    EXPECT_NEAR(d.value, kJawTruth.at(d.name), 1e-3) << d.name;
+  // The second pose is the first turned, to rounding.
+  const Pose turned = axis.turn(result.radiographs[0].pose, 12.0);
+  EXPECT_LT((result.radiographs[1].pose.translation_mm - turned.translation_mm).norm(), 1e-9);
+  EXPECT_LT((result.radiographs[1].pose.rotation - turned.rotation).norm(), 1e-12);
+  EXPECT_LT((result.radiographs[0].pose.translation_mm - a.translation_mm).norm(), 0.01);
+}
+
+TEST_F(Measure, ATurnedRadiographNeedsTheMachinesTurntable) {
+  writeOpenBeamShot();
+  std::ofstream(dir_ / "material.json") << ExponentialSum({{1.0, 0.05}}).toJson().dump();
+  std::ofstream(dir_ / "job.json") << R"({
+    "part": ")" + kRoot + R"(/parts/cuboid.json",
+    "machine": "machine.json", "material": "material.json",
+    "radiographs": [
+      {"name": "a", "image": "a.tif", "white_region": [0, 0, 4, 4], "roi": [8, 8, 48, 48]},
+      {"name": "b", "image": "a.tif", "white_region": [0, 0, 4, 4], "roi": [8, 8, 48, 48],
+       "pattern": "turned",
+       "reference": "a", "angle_deg": 10}],
+    "pose_bounds": {"rotation_deg": [[-5, 5], [-5, 5], [-5, 5]],
+                    "centre_mm": [[-5, 5], [-5, 5], [480, 520]]}})";
+  const MeasurementInputs inputs = loadMeasurementInputs(dir_ / "job.json");
+  expectErrorMentioning([&] { ForwardModel model(inputs); },
+                        "/radiographs/1/pattern: radiograph b is turned, but the machine file");
 }
 
 // The methods, renders with derivatives and renders of a result's joint

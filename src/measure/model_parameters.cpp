@@ -80,6 +80,12 @@ void ForwardModel::addPoseParameters() {
             {-180.0, s.axis_elevation_bounds_deg[0]}, {180.0, s.axis_elevation_bounds_deg[1]},
             {0.0, std::clamp(0.0, s.axis_elevation_bounds_deg[0], s.axis_elevation_bounds_deg[1])});
         break;
+      case Acquisition::kTurned:
+        if (!machine().turntable)
+          failAt(SourceLocation::at(job.file.string(), fmt::format("/radiographs/{}/pattern", r)),
+                 "radiograph {} is turned, but the machine file {} states no turntable axis",
+                 s.name, job.machine_file.string());
+        break;
       case Acquisition::kKnown:
         break;
     }
@@ -163,6 +169,7 @@ std::vector<int> ForwardModel::poseIndices(int r) const {
     }
     case Acquisition::kTranslated:
       return layout_.block(spec(r).name + "/axis");
+    case Acquisition::kTurned:
     case Acquisition::kKnown:
       break;
   }
@@ -200,6 +207,8 @@ Pose ForwardModel::pose(std::span<const double> theta, int radiograph) const {
       out.translation_mm += s.distance_mm * axisFromAngles(p[0], p[1]);
       return out;
     }
+    case Acquisition::kTurned:
+      return machine().turntable->turn(pose(theta, s.reference), s.angle_deg);
     case Acquisition::kKnown:
       return s.known_pose;
   }

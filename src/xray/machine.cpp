@@ -19,7 +19,27 @@ Vec3 triple(const ConfigNode& node, double limit) {
           node[2].number(-limit, limit)};
 }
 
+Turntable turntableFromConfig(const ConfigNode& node) {
+  Turntable t;
+  t.point_mm = triple(node.at("point_mm"), 1e6);
+  const Vec3 direction = triple(node.at("direction"), 1e6);
+  if (!(direction.norm() > 1e-9)) node.at("direction").fail("the axis direction is zero");
+  t.direction = direction.normalized();
+  if (auto u = node.find("point_uncertainty_mm")) t.point_uncertainty_mm = u->number(0.0, 100.0);
+  if (auto u = node.find("direction_uncertainty_deg"))
+    t.direction_uncertainty_deg = u->number(0.0, 10.0);
+  return t;
+}
+
 }  // namespace
+
+Pose Turntable::turn(const Pose& reference, double angle_deg) const {
+  const Mat3 turn = Eigen::AngleAxisd(angle_deg * kDegToRad, direction).toRotationMatrix();
+  Pose out = reference;
+  out.rotation = turn * reference.rotation;
+  out.translation_mm = turn * (reference.translation_mm - point_mm) + point_mm;
+  return out;
+}
 
 Machine Machine::fromConfig(const ConfigNode& node) {
   Machine m;
@@ -57,6 +77,7 @@ Machine Machine::fromConfig(const ConfigNode& node) {
           loadBadPixelMask(file.bad_pixels, m.columns, m.rows));
   }
   m.description = node.get<std::string>("description", "");
+  if (auto t = node.find("turntable")) m.turntable = turntableFromConfig(*t);
   if (auto u = node.find("uncertainty")) {
     if (auto d = u->find("source_detector_distance_mm"))
       m.source_detector_distance_uncertainty_mm = d->number(0.0, 1e3);
@@ -107,6 +128,13 @@ nlohmann::json Machine::toJson() const {
   if (!std::isnan(lag_fraction)) out["detector"]["lag_fraction"] = lag_fraction;
   if (!std::isnan(lag_fraction_uncertainty))
     out["uncertainty"]["lag_fraction"] = lag_fraction_uncertainty;
+  if (turntable)
+    out["turntable"] = {
+        {"point_mm", {turntable->point_mm.x(), turntable->point_mm.y(), turntable->point_mm.z()}},
+        {"direction",
+         {turntable->direction.x(), turntable->direction.y(), turntable->direction.z()}},
+        {"point_uncertainty_mm", turntable->point_uncertainty_mm},
+        {"direction_uncertainty_deg", turntable->direction_uncertainty_deg}};
   if (!description.empty()) out["description"] = description;
   return out;
 }

@@ -80,7 +80,7 @@
 
 namespace xgauge {
 
-enum class Acquisition { kFree, kTranslated, kRotated, kKnown };
+enum class Acquisition { kFree, kTranslated, kRotated, kKnown, kTurned };
 
 // What of the material's curve the final fit may correct (job
 // "refine_material"): nothing, or a common scale of its rates with the
@@ -92,6 +92,10 @@ enum class MaterialRefinement { kNone, kRateScale };
 // The standard uncertainty of a translated radiograph's distance when the
 // job states none: a linear stage's positioning, 5 um.
 inline constexpr double kDefaultTranslationUncertaintyMm = 0.005;
+
+// The standard uncertainty of a turned radiograph's angle when the job states
+// none: a rotary stage's encoder, 0.005 deg.
+inline constexpr double kDefaultTurnUncertaintyDeg = 0.005;
 
 struct RadiographSpec {
   std::string name;
@@ -107,6 +111,8 @@ struct RadiographSpec {
   double distance_uncertainty_mm = kDefaultTranslationUncertaintyMm;  // translated
   std::array<double, 2> axis_elevation_bounds_deg{-90.0, 90.0};       // translated
   Pose known_pose;                                                    // known
+  double angle_deg = 0.0;                                             // turned
+  double angle_uncertainty_deg = kDefaultTurnUncertaintyDeg;          // turned
 };
 
 struct MeasurementJob {

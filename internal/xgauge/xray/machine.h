@@ -19,6 +19,13 @@
 //                                    previous frame
 //   uncertainty.lag_fraction         optional, 0..0.5: the standard uncertainty
 //                                    of lag_fraction (default: a tenth of it)
+//   turntable                        optional: the rotary stage's axis
+//     .point_mm                      a point of the axis (world mm)
+//     .direction                     its direction (normalised here)
+//     .point_uncertainty_mm          optional, 0..100: standard uncertainty of
+//                                    the point across the axis (default 0.01)
+//     .direction_uncertainty_deg     optional, 0..10: of the direction's two
+//                                    tilts (default 0.01)
 //   description                      optional free text
 //
 // Pose JSON keys (a pose maps part to world coordinates, x_w = R x_p + t):
@@ -36,8 +43,24 @@
 #include <filesystem>
 #include <limits>
 #include <memory>
+#include <optional>
 
 namespace xgauge {
+
+// A rotary stage's axis: "turned" radiographs are their reference's pose
+// turned about it by a stated angle (docs/conventions.md, stage axis).
+struct Turntable {
+  Vec3 point_mm = Vec3::Zero();
+  Vec3 direction = Vec3::UnitY();  // unit
+  double point_uncertainty_mm = kDefaultPointUncertaintyMm;
+  double direction_uncertainty_deg = kDefaultDirectionUncertaintyDeg;
+  // A geometry calibration states its axis to about 10 um and 0.01 deg.
+  static constexpr double kDefaultPointUncertaintyMm = 0.01;
+  static constexpr double kDefaultDirectionUncertaintyDeg = 0.01;
+  // The pose `reference` turned about the axis by `angle_deg` (right-handed
+  // about `direction`).
+  Pose turn(const Pose& reference, double angle_deg) const;
+};
 
 struct Machine {
   double source_detector_distance_mm = 1000.0;
@@ -48,6 +71,7 @@ struct Machine {
   double cx_px = 512.0;
   double cy_px = 512.0;
   std::string description;
+  std::optional<Turntable> turntable;
   double lag_fraction = std::numeric_limits<double>::quiet_NaN();  // NaN: not stated
   // The characterised detector's column crosstalk (its detector file's
   // "crosstalk"), undone on raw radiographs (image/radiograph.h); 0: none.

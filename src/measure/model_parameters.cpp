@@ -178,8 +178,11 @@ std::vector<int> ForwardModel::poseIndices(int r) const {
 
 std::vector<int> ForwardModel::jointIndices() const {
   std::vector<int> all = free_dims_;
+  // A pose parameter the job's bounds fix (lower == upper: a part's axis of
+  // symmetry, a height a line detector cannot see) is left where it is.
   for (int r = 0; r < radiographCount(); ++r)
-    for (int i : poseIndices(r)) all.push_back(i);
+    for (int i : poseIndices(r))
+      if (layout_.isFree(i)) all.push_back(i);
   for (int i : materialIndices()) all.push_back(i);
   return all;
 }

@@ -19,8 +19,29 @@ void Runner::report(const StageReport& stage) {
   if (on_stage_) on_stage_(stage);
 }
 
-double Runner::run(const StagePlan& plan) {
+namespace {
+
+// `plan` without the parameters the job's bounds fix (lower == upper).
+StagePlan withoutFixed(const StagePlan& plan, const ForwardModel& model) {
+  StagePlan out = plan;
+  out.indices.clear(), out.lower.clear(), out.upper.clear(), out.step.clear();
+  for (size_t k = 0; k < plan.indices.size(); ++k) {
+    if (!model.parameters().isFree(plan.indices[k])) continue;
+    out.indices.push_back(plan.indices[k]);
+    if (!plan.lower.empty()) out.lower.push_back(plan.lower[k]), out.upper.push_back(plan.upper[k]);
+    if (!plan.step.empty()) out.step.push_back(plan.step[k]);
+  }
+  return out;
+}
+
+}  // namespace
+
+double Runner::run(const StagePlan& given) {
   const auto start = std::chrono::steady_clock::now();
+  const StagePlan plan = withoutFixed(given, model_);
+  if (plan.indices.empty())
+    return model_.loss(theta_, plan.level, plan.samples, plan.radiographs)
+        .value_or(std::numeric_limits<double>::infinity());
   Objective objective;
   for (size_t k = 0; k < plan.indices.size(); ++k) {
     const int i = plan.indices[k];

@@ -15,6 +15,10 @@ packages=(
   libceres-dev         # Ceres Solver: the final least-squares stage and its covariance
   nlohmann-json3-dev   # JSON
   libmuparser-dev      # dimension expressions in part models
+  libocct-foundation-dev libocct-modeling-data-dev libocct-modeling-algorithms-dev
+  libocct-data-exchange-dev libocct-ocaf-dev libocct-visualization-dev
+                       # OpenCASCADE: "step" shapes (read, check, tessellate STEP
+                       # solids); its CMake package needs the last two's targets
   libssl-dev           # SHA-256 of input files (libcrypto)
   libcli11-dev         # command line parsing
   libfmt-dev libspdlog-dev

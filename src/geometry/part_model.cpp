@@ -210,15 +210,16 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
   d.name = path.stem().string();
   d.description = root.get<std::string>("description");
 
-  // The shape first: an STL shape takes no dimensions.
+  // The shape first: an STL or STEP shape takes no dimensions.
   const SolidSpec spec = readSolidSpec(root.at("shape"), path.parent_path());
   d.scalars = spec.scalars;
-  if (spec.is_stl) {
+  if (!spec.fixed_root.empty()) {
     for (const char* key : {"dimensions", "constants", "derived", "constraints", "combinations"})
       if (const auto node = root.find(key))
         node->fail(
-            "a part with an \"stl\" shape has no dimensions, constants, derived values "
-            "or constraints");
+            fmt::format("a part with {} \"{}\" shape has no dimensions, constants, derived values "
+                        "or constraints",
+                        spec.fixed_root == "stl" ? "an" : "a", spec.fixed_root));
   } else {
     std::set<std::string> taken;
     const ConfigNode dimensions = root.at("dimensions");
@@ -295,11 +296,11 @@ PartModel PartModel::fromStl(const std::filesystem::path& path) {
   definition->description = fmt::format("fixed mesh read from {}", path.string());
   SolidSpec spec;
   spec.where = SourceLocation::inFile(path.string());
-  spec.is_stl = true;
+  spec.fixed_root = "stl";
   SolidSpec::Piece piece;
-  piece.shape.type = ShapeType::kStl;
+  piece.shape.type = ShapeType::kFixed;
   piece.shape.where = spec.where;
-  piece.shape.stl = readStl(path);
+  piece.shape.fixed = readStl(path);
   spec.pieces.push_back(std::move(piece));
   spec.program.push_back({Csg::Op::kPiece, 0});
   definition->shape = std::make_unique<const Solid>(spec, std::span<const double>{});

@@ -265,7 +265,7 @@ TEST(PartModel, BadDeclarations) {
                   "'sin' is the name of a built-in function or constant", "/constants/0/name");
   expectLoadError(replaced(kNotchedBar, R"("type": "extrusion")", R"("type": "sweep")"),
                   "unknown shape type 'sweep' (known: union, difference, intersection, extrusion, "
-                  "revolution, box, cylinder, mesh, stl)",
+                  "revolution, box, cylinder, mesh, stl, step)",
                   "/shape/type");
   expectLoadError(replaced(kNotchedBar, R"("axis": "y")", R"("axis": "x")"),
                   "the extrusion axis must be the one not in the plane, 'y'", "/shape/axis");

@@ -1,6 +1,7 @@
 #include "shape.h"
 
 #include "xgauge/geometry/polygon.h"
+#include "xgauge/geometry/step.h"
 #include "xgauge/geometry/stl.h"
 
 #include <algorithm>
@@ -55,6 +56,19 @@ void readSegments(const ConfigNode& shape, ShapeSpec& spec) {
                                "supported",
                                spec.scalars.size() / 2, spec.segments, triangles,
                                kMaxShapeTriangles));
+}
+
+// The tessellation keys of a "step" shape, both optional.
+StepTessellation readStepTessellation(const ConfigNode& shape) {
+  static_assert(kMaxStepTriangles == kMaxShapeTriangles);
+  StepTessellation tessellation;
+  if (const auto chord = shape.find("chord_tolerance_mm"))
+    tessellation.chord_tolerance_mm =
+        chord->number(kMinStepChordToleranceMm, kMaxStepChordToleranceMm);
+  if (const auto angle = shape.find("angular_tolerance_deg"))
+    tessellation.angular_tolerance_deg =
+        angle->number(kMinStepAngularToleranceDeg, kMaxStepAngularToleranceDeg);
+  return tessellation;
 }
 
 // A list of exactly three expressions (a point or a size).
@@ -299,7 +313,7 @@ class ListedShape final : public Shape {
   }
 };
 
-// A mesh read from an STL file (already checked by readStl).
+// A mesh read from an STL or STEP file (already checked by readStl, readStep).
 class FixedShape final : public Shape {
  public:
   explicit FixedShape(const TriangleMesh& mesh) : vertices_(mesh.vertices) {
@@ -384,14 +398,15 @@ ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& di
       spec.triangles.push_back({readIndex(t[0], vertex_count), readIndex(t[1], vertex_count),
                                 readIndex(t[2], vertex_count)});
     }
-  } else if (type == "stl") {
-    spec.type = ShapeType::kStl;
+  } else if (type == "stl" || type == "step") {
+    spec.type = ShapeType::kFixed;
     const std::filesystem::path file = shape.get<std::string>("file");
-    spec.stl = readStl(file.is_absolute() ? file : directory / file);
+    const std::filesystem::path path = file.is_absolute() ? file : directory / file;
+    spec.fixed = type == "stl" ? readStl(path) : readStep(path, readStepTessellation(shape));
   } else {
     type_node.fail(
         fmt::format("unknown shape type '{}' (known: union, difference, intersection, extrusion, "
-                    "revolution, box, cylinder, mesh, stl)",
+                    "revolution, box, cylinder, mesh, stl, step)",
                     type));
   }
   return spec;
@@ -412,8 +427,8 @@ std::unique_ptr<const Shape> buildShape(const ShapeSpec& spec,
       return std::make_unique<RevolvedShape>(spec, nominal_scalars);
     case ShapeType::kMesh:
       return std::make_unique<ListedShape>(spec, nominal_scalars);
-    case ShapeType::kStl:
-      return std::make_unique<FixedShape>(spec.stl);
+    case ShapeType::kFixed:
+      return std::make_unique<FixedShape>(spec.fixed);
   }
   XG_CHECK(false, "unknown shape type");
   return nullptr;

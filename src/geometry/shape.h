@@ -17,14 +17,14 @@
 
 namespace xgauge {
 
-enum class ShapeType { kExtrusion, kRevolution, kMesh, kStl };
+enum class ShapeType { kExtrusion, kRevolution, kMesh, kFixed };
 
 // A shape as read from the file. Its scalars are the expressions whose values
 // place the vertices:
 //   extrusion:  a_0, b_0, a_1, b_1, ... (profile), then from, to
 //   revolution: r_0, h_0, r_1, h_1, ... (profile: radius, axial position)
 //   mesh:       x_0, y_0, z_0, x_1, ...
-//   stl:        none (the vertices are fixed)
+//   stl, step:  none (the vertices are fixed)
 struct ShapeSpec {
   ShapeType type = ShapeType::kMesh;
   SourceLocation where;  // the "shape" object
@@ -35,12 +35,13 @@ struct ShapeSpec {
   std::array<int, 3> axes{0, 1, 2};
   int segments = 0;                 // revolution; 0: enough for a 0.001 mm chord error
   std::vector<Triangle> triangles;  // mesh
-  TriangleMesh stl;                 // stl
+  TriangleMesh fixed;               // stl, step: the mesh read from the file
 };
 
 // Reads one primitive solid: "extrusion" (without holes), "revolution",
-// "box", "cylinder", "mesh" or "stl" (boxes become extrusions, cylinders
-// revolutions). Relative STL paths are taken from `directory`. Placement keys
+// "box", "cylinder", "mesh", "stl" or "step" (boxes become extrusions,
+// cylinders revolutions; STL and STEP files fixed meshes). Relative STL and
+// STEP paths are taken from `directory`. Placement keys
 // and holes are read by the solid (solid.h).
 ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& directory);
 

@@ -133,7 +133,8 @@ std::optional<std::string> turnedInsideOut(std::span<const Vec3> vertices,
 SolidSpec readSolidSpec(const ConfigNode& shape, const std::filesystem::path& directory) {
   SolidSpec spec;
   spec.where = shape.where();
-  spec.is_stl = shape.at("type").string() == "stl";
+  const std::string type = shape.at("type").string();
+  if (type == "stl" || type == "step") spec.fixed_root = type;
   TreeReader(directory, spec).read(shape, {});
   return spec;
 }

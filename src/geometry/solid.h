@@ -39,7 +39,8 @@ struct SolidSpec {
   std::vector<Placement> placements;
   std::vector<ExpressionSource> scalars;  // every piece's, and every placement's
   SourceLocation where;                   // the root "shape" object
-  bool is_stl = false;                    // the root is an "stl" shape
+  // "stl" or "step" when the root is such a shape (a fixed mesh); empty otherwise.
+  std::string fixed_root;
 };
 
 // Reads the "shape" object, recursively.

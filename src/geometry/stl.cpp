@@ -2,24 +2,15 @@
 
 #include "xgauge/core/file.h"
 
-#include <spdlog/spdlog.h>
-
 #include <algorithm>
 #include <bit>
 #include <cctype>
 #include <charconv>
 #include <cmath>
-#include <fstream>
-#include <numeric>
-#include <sstream>
 #include <string_view>
-#include <unordered_map>
 
 namespace xgauge {
 namespace {
-
-// Three corners per triangle, as stored in the file.
-using TriangleSoup = std::vector<std::array<Vec3, 3>>;
 
 constexpr size_t kBinaryHeaderBytes = 84;    // 80-byte header + uint32 triangle count
 constexpr size_t kBinaryTriangleBytes = 50;  // normal, 3 corners (12 floats), uint16
@@ -170,133 +161,13 @@ TriangleSoup parseStl(const std::string& bytes, const std::string& file) {
               SourceLocation::inFile(file));
 }
 
-// Union-find over vertex indices whose root is the smallest index of a set.
-class SmallestRootSets {
- public:
-  explicit SmallestRootSets(size_t n) : parent_(n) {
-    std::iota(parent_.begin(), parent_.end(), uint32_t{0});
-  }
-  uint32_t root(uint32_t v) {
-    while (parent_[v] != v) v = parent_[v] = parent_[parent_[v]];
-    return v;
-  }
-  void join(uint32_t a, uint32_t b) {
-    a = root(a), b = root(b);
-    if (a != b) parent_[std::max(a, b)] = std::min(a, b);
-  }
-
- private:
-  std::vector<uint32_t> parent_;
-};
-
-struct CellHash {
-  size_t operator()(const std::array<int64_t, 3>& cell) const {
-    uint64_t h = 1469598103934665603ull;
-    for (int64_t c : cell) h = (h ^ static_cast<uint64_t>(c)) * 1099511628211ull;
-    return static_cast<size_t>(h);
-  }
-};
-
-// For each vertex, the smallest index of a vertex within `tolerance` of it in
-// every coordinate (chains included). Vertices are bucketed in a grid of
-// cells `tolerance` wide, so only the 27 surrounding cells need comparing.
-std::vector<uint32_t> mergeClose(const std::vector<Vec3>& vertices, const Vec3& origin,
-                                 double tolerance) {
-  SmallestRootSets sets(vertices.size());
-  std::unordered_map<std::array<int64_t, 3>, std::vector<uint32_t>, CellHash> cells;
-  auto cellOf = [&](const Vec3& v) {
-    const Vec3 scaled = ((v - origin) / tolerance).array().floor().matrix();
-    return std::array<int64_t, 3>{static_cast<int64_t>(scaled.x()),
-                                  static_cast<int64_t>(scaled.y()),
-                                  static_cast<int64_t>(scaled.z())};
-  };
-  for (uint32_t i = 0; i < vertices.size(); ++i) cells[cellOf(vertices[i])].push_back(i);
-  for (uint32_t i = 0; i < vertices.size(); ++i) {
-    const auto cell = cellOf(vertices[i]);
-    for (int64_t dx = -1; dx <= 1; ++dx)
-      for (int64_t dy = -1; dy <= 1; ++dy)
-        for (int64_t dz = -1; dz <= 1; ++dz) {
-          const auto found = cells.find({cell[0] + dx, cell[1] + dy, cell[2] + dz});
-          if (found == cells.end()) continue;
-          for (uint32_t j : found->second)
-            if (j > i && (vertices[i] - vertices[j]).cwiseAbs().maxCoeff() <= tolerance)
-              sets.join(i, j);
-        }
-  }
-  std::vector<uint32_t> representative(vertices.size());
-  for (uint32_t i = 0; i < vertices.size(); ++i) representative[i] = sets.root(i);
-  return representative;
-}
-
-struct PointHash {
-  size_t operator()(const Vec3& p) const {  // +0.0 and -0.0 hash alike
-    size_t h = std::hash<double>{}(p.x());
-    h = h * 1000003u ^ std::hash<double>{}(p.y());
-    return h * 1000003u ^ std::hash<double>{}(p.z());
-  }
-};
-
-TriangleMesh weld(const TriangleSoup& soup, const std::string& file) {
-  // Exact matches first.
-  TriangleMesh mesh;
-  std::unordered_map<Vec3, uint32_t, PointHash> index_of;
-  mesh.triangles.reserve(soup.size());
-  for (const auto& corners : soup) {
-    Triangle& t = mesh.triangles.emplace_back();
-    for (int c = 0; c < 3; ++c) {
-      const auto [it, added] =
-          index_of.try_emplace(corners[c], static_cast<uint32_t>(mesh.vertices.size()));
-      if (added) mesh.vertices.push_back(corners[c]);
-      t[c] = it->second;
-    }
-  }
-
-  // Then near matches; keep the surviving vertices in their first-seen order.
-  const BoundingBox box = boundingBox(mesh);
-  const double tolerance = kStlWeldTolerance * box.diagonal();
-  if (tolerance > 0) {
-    const std::vector<uint32_t> representative = mergeClose(mesh.vertices, box.min_mm, tolerance);
-    std::vector<uint32_t> new_index(mesh.vertices.size());
-    std::vector<Vec3> kept;
-    for (uint32_t i = 0; i < mesh.vertices.size(); ++i) {
-      if (representative[i] == i) {
-        new_index[i] = static_cast<uint32_t>(kept.size());
-        kept.push_back(mesh.vertices[i]);
-      } else {
-        new_index[i] = new_index[representative[i]];  // representative[i] < i
-      }
-    }
-    mesh.vertices = std::move(kept);
-    for (Triangle& t : mesh.triangles)
-      for (uint32_t& v : t) v = new_index[v];
-  }
-
-  // Triangles that lost a corner to welding cover no area: drop them.
-  const size_t before = mesh.triangles.size();
-  std::erase_if(mesh.triangles,
-                [](const Triangle& t) { return t[0] == t[1] || t[1] == t[2] || t[2] == t[0]; });
-  if (mesh.triangles.size() != before)
-    spdlog::warn("{}: dropped {} triangles that collapsed when welding vertices", file,
-                 before - mesh.triangles.size());
-  return mesh;
-}
-
 }  // namespace
 
 TriangleMesh readStl(const std::filesystem::path& path) {
   const std::string file = path.string();
   // 256 MiB: 5 million binary triangles, far beyond any part a fit can use.
   const std::string bytes = readFileContents(path, uint64_t{256} << 20, "an STL file");
-  TriangleMesh mesh = weld(parseStl(bytes, file), file);
-  const MeshCheck check = checkClosedMesh(mesh);
-  if (check.problem == MeshCheck::Problem::kInward) {
-    spdlog::warn("{}: triangles face inward; flipped them all", file);
-    flipOrientation(mesh);
-  } else if (!check.ok()) {
-    throw Error(check.message, SourceLocation::inFile(file));
-  }
-  noteZeroAreaTriangles(check, file);
-  return mesh;
+  return closedMeshFromSoup(parseStl(bytes, file), file);
 }
 
 }  // namespace xgauge

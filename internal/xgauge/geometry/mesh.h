@@ -87,4 +87,22 @@ void noteZeroAreaTriangles(const MeshCheck& check, const std::string& source);
 // checkClosedMesh, throwing Error(message, where) on the first problem.
 void requireClosedMesh(const TriangleMesh& mesh, const SourceLocation& where);
 
+// Three corners per triangle, as a file gives them: an STL's facets (stl.h),
+// the triangles of a tessellated STEP solid (step.h).
+using TriangleSoup = std::vector<std::array<Vec3, 3>>;
+
+// Relative tolerance of the second welding pass of closedMeshFromSoup.
+inline constexpr double kWeldTolerance = 1e-9;
+
+// The common end of the readers of fixed meshes (STL, STEP): the soup as a
+// closed, outward, indexed mesh. Welding: vertices with identical
+// coordinates become one vertex; then vertices whose coordinates all differ
+// by at most kWeldTolerance times the bounding box diagonal are merged as
+// well (writers that rounded one point two ways). Triangles that collapse in
+// welding (a repeated vertex) are dropped with a warning. The welded mesh
+// must pass checkClosedMesh; one that is closed and consistent but faces
+// inward is flipped with a warning. Every other problem throws Error located
+// in the file `source`.
+TriangleMesh closedMeshFromSoup(const TriangleSoup& soup, const std::string& source);
+
 }  // namespace xgauge

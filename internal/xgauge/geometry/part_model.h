@@ -16,7 +16,8 @@
 //                  |    drawing's default deviation limits from nominal in
 //                  |    the dimension's unit, lower < upper, the zone
 //                  |    overlapping [min, max] (measure/tolerance.h)}
-//                  | min <= nominal <= max, min < max. Absent for "stl".
+//                  | min <= nominal <= max, min < max. Absent for "stl"
+//                  | and "step".
 //   constants      | optional array of {"name", "value", "unit" (optional),
 //                  |   "description" (optional)}: fixed values such as L = 40
 //   derived        | optional array of {"name", "expr", "description"
@@ -44,6 +45,11 @@
 //   "mesh"         | "vertices": [[x, y, z], ...]; "triangles": [[i, j, k],
 //                  | ...], counter-clockwise seen from outside (checked).
 //   "stl"          | "file": an STL path, relative to the part file.
+//   "step"         | "file": a STEP path, relative to the part file (a
+//                  | closed B-rep solid, tessellated once: step.h);
+//                  | optional "chord_tolerance_mm" (1e-5 .. 1, default
+//                  | 0.001) and "angular_tolerance_deg" (0.5 .. 60,
+//                  | default 20).
 //
 // Every coordinate, bound of an extrusion, derived value and constraint is an
 // expression (a JSON string, or a plain number) in muparser syntax: + - * / ^,
@@ -113,7 +119,7 @@ class PartModel {
   // constraint.
   static PartModel load(const std::filesystem::path& path);
   // The same from a file already read (ConfigNode::loadFile); `path` is the
-  // file's, for its name and the folder of an STL shape.
+  // file's, for its name and the folder of an STL or STEP shape.
   static PartModel fromConfig(const ConfigNode& root, const std::filesystem::path& path);
   // A fixed mesh without dimensions (see readStl).
   static PartModel fromStl(const std::filesystem::path& path);

@@ -1,0 +1,281 @@
+// STEP solids through OpenCASCADE (OCCT), the maintained tool for reading
+// STEP: read, check closed and valid, tessellate, then the STL reader's
+// welding and checks (closedMeshFromSoup). See xgauge/geometry/step.h.
+#include "xgauge/geometry/step.h"
+
+#include "xgauge/core/file.h"
+
+#include <BRepCheck.hxx>
+#include <BRepCheck_Analyzer.hxx>
+#include <BRepCheck_ListOfStatus.hxx>
+#include <BRepCheck_Result.hxx>
+#include <BRepMesh_IncrementalMesh.hxx>
+#include <BRep_Tool.hxx>
+#include <IFSelect_ReturnStatus.hxx>
+#include <IMeshTools_Parameters.hxx>
+#include <Message.hxx>
+#include <Message_Messenger.hxx>
+#include <Message_PrinterOStream.hxx>
+#include <Poly_Triangulation.hxx>
+#include <STEPControl_Reader.hxx>
+#include <Standard_Failure.hxx>
+#include <StepData_StepModel.hxx>
+#include <StepRepr_RepresentationItem.hxx>
+#include <TCollection_HAsciiString.hxx>
+#include <TopExp.hxx>
+#include <TopExp_Explorer.hxx>
+#include <TopLoc_Location.hxx>
+#include <TopTools_IndexedMapOfShape.hxx>
+#include <TopoDS.hxx>
+#include <TopoDS_Edge.hxx>
+#include <TopoDS_Face.hxx>
+#include <TopoDS_Shape.hxx>
+#include <XSControl_TransferReader.hxx>
+#include <XSControl_WorkSession.hxx>
+
+#include <array>
+#include <cctype>
+#include <cmath>
+#include <mutex>
+#include <numbers>
+#include <optional>
+#include <sstream>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace xgauge {
+namespace {
+
+// A STEP file holds text: 256 MiB is far beyond any part a fit can use.
+constexpr uint64_t kMaxStepBytes = uint64_t{256} << 20;
+
+std::mutex& occtMutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+
+// OCCT's default messenger prints to standard output (xgauge writes results
+// there); remove that printer once for the process.
+void silenceOcct() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_PrinterOStream));
+  });
+}
+
+[[noreturn]] void failIn(const std::string& file, const std::string& message) {
+  throw Error(message, SourceLocation::inFile(file));
+}
+
+// The faces in OCCT's order (1-based), and how to name one in an error.
+class FaceNames {
+ public:
+  FaceNames(const STEPControl_Reader& reader, const TopoDS_Shape& shape) : reader_(reader) {
+    TopExp::MapShapes(shape, TopAbs_FACE, faces_);
+  }
+  int count() const { return faces_.Extent(); }
+  const TopoDS_Face& face(int index) const { return TopoDS::Face(faces_(index)); }
+
+  // "face 3 of 6 (#42 'top')": the entity and its name where the transfer
+  // recorded them.
+  std::string name(const TopoDS_Shape& face) const {
+    const int index = faces_.FindIndex(face);
+    std::string text = fmt::format("face {} of {}", index, faces_.Extent());
+    const Handle(XSControl_WorkSession) session = reader_.WS();
+    if (session.IsNull() || session->TransferReader().IsNull()) return text;
+    // Mode 1: the last transfer's roots and their sub-shapes (faces).
+    const Handle(Standard_Transient) entity =
+        session->TransferReader()->EntityFromShapeResult(face, 1);
+    if (entity.IsNull()) return text;
+    std::string details;
+    const auto model = Handle(StepData_StepModel)::DownCast(session->Model());
+    if (!model.IsNull() && model->IdentLabel(entity) > 0)
+      details = fmt::format("#{}", model->IdentLabel(entity));
+    const auto item = Handle(StepRepr_RepresentationItem)::DownCast(entity);
+    if (!item.IsNull() && !item->Name().IsNull() && item->Name()->Length() > 0)
+      details += fmt::format("{}'{}'", details.empty() ? "" : " ", item->Name()->ToCString());
+    return details.empty() ? text : fmt::format("{} ({})", text, details);
+  }
+
+ private:
+  const STEPControl_Reader& reader_;
+  TopTools_IndexedMapOfShape faces_;
+};
+
+// Every edge of every face must bound exactly two face sides: a closed,
+// manifold surface. A seam (a closed face meeting itself) counts twice in
+// its face; degenerate edges (a cone's apex) bound nothing.
+void requireClosedSurface(const FaceNames& names, const std::string& file) {
+  TopTools_IndexedMapOfShape edges;
+  std::vector<int> uses;
+  for (int f = 1; f <= names.count(); ++f)
+    for (TopExp_Explorer e(names.face(f), TopAbs_EDGE); e.More(); e.Next()) {
+      if (BRep_Tool::Degenerated(TopoDS::Edge(e.Current()))) continue;
+      const int index = edges.Add(e.Current());
+      if (static_cast<size_t>(index) > uses.size()) uses.resize(static_cast<size_t>(index), 0);
+      ++uses[static_cast<size_t>(index) - 1];
+    }
+  for (int f = 1; f <= names.count(); ++f)
+    for (TopExp_Explorer e(names.face(f), TopAbs_EDGE); e.More(); e.Next()) {
+      if (BRep_Tool::Degenerated(TopoDS::Edge(e.Current()))) continue;
+      const int count = uses[static_cast<size_t>(edges.FindIndex(e.Current())) - 1];
+      if (count == 1)
+        failIn(file, fmt::format("{} is bounded by a free edge (one no other face shares): not a "
+                                 "closed solid",
+                                 names.name(names.face(f))));
+      if (count > 2)
+        failIn(file, fmt::format("{} has an edge shared by {} faces: not a closed solid (not "
+                                 "manifold)",
+                                 names.name(names.face(f)), count));
+    }
+}
+
+std::optional<BRepCheck_Status> firstProblem(const BRepCheck_ListOfStatus& list) {
+  for (const BRepCheck_Status status : list)
+    if (status != BRepCheck_NoError) return status;
+  return std::nullopt;
+}
+
+std::string statusName(BRepCheck_Status status) {
+  std::ostringstream text;
+  BRepCheck::Print(status, text);
+  std::string name = text.str();
+  while (!name.empty() && std::isspace(static_cast<unsigned char>(name.back()))) name.pop_back();
+  return name;
+}
+
+// The first problem OCCT's checker finds on this face, its wires or edges.
+std::optional<BRepCheck_Status> faceProblem(const BRepCheck_Analyzer& analyzer,
+                                            const TopoDS_Face& face) {
+  if (const Handle(BRepCheck_Result) result = analyzer.Result(face); !result.IsNull())
+    if (const auto problem = firstProblem(result->Status())) return problem;
+  for (const TopAbs_ShapeEnum kind : {TopAbs_WIRE, TopAbs_EDGE})
+    for (TopExp_Explorer e(face, kind); e.More(); e.Next()) {
+      const Handle(BRepCheck_Result) result = analyzer.Result(e.Current());
+      if (result.IsNull()) continue;
+      if (const auto problem = firstProblem(result->Status())) return problem;
+      if (result->IsStatusOnShape(face))
+        if (const auto problem = firstProblem(result->StatusOnShape(face))) return problem;
+    }
+  return std::nullopt;
+}
+
+void requireValid(const TopoDS_Shape& shape, const FaceNames& names, const std::string& file) {
+  const BRepCheck_Analyzer analyzer(shape);
+  if (analyzer.IsValid()) return;
+  for (int f = 1; f <= names.count(); ++f)
+    if (const auto problem = faceProblem(analyzer, names.face(f)))
+      failIn(file, fmt::format("{} fails OpenCASCADE's B-rep check ({}): not a valid solid",
+                               names.name(names.face(f)), statusName(*problem)));
+  std::string why = "the shape fails OpenCASCADE's B-rep check";
+  if (const Handle(BRepCheck_Result) result = analyzer.Result(shape); !result.IsNull())
+    if (const auto problem = firstProblem(result->Status()))
+      why += fmt::format(" ({})", statusName(*problem));
+  failIn(file, why + ": not a valid solid");
+}
+
+// The triangles of every face, outward, in the part frame (mm).
+TriangleSoup tessellate(const TopoDS_Shape& shape, const FaceNames& names,
+                        const StepTessellation& tessellation, const std::string& file) {
+  IMeshTools_Parameters parameters;
+  parameters.Deflection = parameters.DeflectionInterior = tessellation.chord_tolerance_mm;
+  parameters.Angle = parameters.AngleInterior =
+      tessellation.angular_tolerance_deg * std::numbers::pi / 180.0;
+  parameters.Relative = false;
+  parameters.InParallel = false;  // the same triangles on every run
+  const BRepMesh_IncrementalMesh mesher(shape, parameters);
+  if (!mesher.IsDone()) failIn(file, "OpenCASCADE's mesher failed on the shape");
+
+  TriangleSoup soup;
+  for (TopExp_Explorer e(shape, TopAbs_FACE); e.More(); e.Next()) {
+    const TopoDS_Face& face = TopoDS::Face(e.Current());
+    TopLoc_Location location;
+    const Handle(Poly_Triangulation) triangulation = BRep_Tool::Triangulation(face, location);
+    if (triangulation.IsNull() || triangulation->NbTriangles() == 0)
+      failIn(file, fmt::format("{} could not be tessellated (OpenCASCADE's mesher made no "
+                               "triangles)",
+                               names.name(face)));
+    if (soup.size() + static_cast<size_t>(triangulation->NbTriangles()) > kMaxStepTriangles)
+      failIn(file, fmt::format("tessellating at a chord tolerance of {} mm makes more than {} "
+                               "triangles; choose a larger chord_tolerance_mm",
+                               tessellation.chord_tolerance_mm, kMaxStepTriangles));
+    const gp_Trsf& transform = location.Transformation();
+    const bool reversed = face.Orientation() == TopAbs_REVERSED;
+    for (int t = 1; t <= triangulation->NbTriangles(); ++t) {
+      int corner[3];
+      triangulation->Triangle(t).Get(corner[0], corner[1], corner[2]);
+      if (reversed) std::swap(corner[1], corner[2]);
+      std::array<Vec3, 3> triangle;
+      for (int c = 0; c < 3; ++c) {
+        const gp_Pnt p = triangulation->Node(corner[c]).Transformed(transform);
+        triangle[static_cast<size_t>(c)] = Vec3(p.X(), p.Y(), p.Z());
+      }
+      // A degenerate edge (a sphere's pole, a cone's apex) is one point that
+      // the mesher places several nodes on: triangles between two of them
+      // cover nothing and are left out here, without the welding's warning.
+      if (triangle[0] == triangle[1] || triangle[1] == triangle[2] || triangle[2] == triangle[0])
+        continue;
+      soup.push_back(triangle);
+    }
+  }
+  return soup;
+}
+
+TopoDS_Shape readShape(STEPControl_Reader& reader, const std::filesystem::path& path,
+                       const std::string& file) {
+  const std::string bytes = readFileContents(path, kMaxStepBytes, "a STEP file");
+  std::string_view text(bytes);
+  if (text.starts_with("\xEF\xBB\xBF")) text.remove_prefix(3);  // a UTF-8 byte order mark
+  const size_t first = text.find_first_not_of(" \t\r\n");
+  if (first == std::string_view::npos || !text.substr(first).starts_with("ISO-10303-21;"))
+    failIn(file, "not a STEP file: it does not start with 'ISO-10303-21;' (ISO 10303-21)");
+  std::istringstream stream(bytes);
+  if (reader.ReadStream(file.c_str(), stream) != IFSelect_RetDone)
+    failIn(file, "OpenCASCADE cannot read this STEP file (syntax or structure error)");
+  if (reader.TransferRoots() == 0)
+    failIn(file, "the STEP file holds no shape OpenCASCADE can read");
+  TopoDS_Shape shape = reader.OneShape();
+  if (shape.IsNull()) failIn(file, "the STEP file holds no shape OpenCASCADE can read");
+  return shape;
+}
+
+void requireTolerances(const StepTessellation& t, const std::string& file) {
+  if (!(t.chord_tolerance_mm >= kMinStepChordToleranceMm &&
+        t.chord_tolerance_mm <= kMaxStepChordToleranceMm))
+    failIn(file, fmt::format("chord_tolerance_mm {} out of range [{}, {}]", t.chord_tolerance_mm,
+                             kMinStepChordToleranceMm, kMaxStepChordToleranceMm));
+  if (!(t.angular_tolerance_deg >= kMinStepAngularToleranceDeg &&
+        t.angular_tolerance_deg <= kMaxStepAngularToleranceDeg))
+    failIn(file,
+           fmt::format("angular_tolerance_deg {} out of range [{}, {}]", t.angular_tolerance_deg,
+                       kMinStepAngularToleranceDeg, kMaxStepAngularToleranceDeg));
+}
+
+}  // namespace
+
+TriangleMesh readStep(const std::filesystem::path& path, const StepTessellation& tessellation) {
+  const std::string file = path.string();
+  requireTolerances(tessellation, file);
+  TriangleSoup soup;
+  {
+    const std::lock_guard lock(occtMutex());
+    silenceOcct();
+    try {
+      STEPControl_Reader reader;
+      const TopoDS_Shape shape = readShape(reader, path, file);
+      const FaceNames names(reader, shape);
+      if (names.count() == 0)
+        failIn(file, "the shape has no faces: not a solid (a STEP file of curves or points?)");
+      requireClosedSurface(names, file);
+      requireValid(shape, names, file);
+      soup = tessellate(shape, names, tessellation, file);
+    } catch (const Standard_Failure& failure) {
+      failIn(file, fmt::format("OpenCASCADE failed: {} ({})", failure.GetMessageString(),
+                               failure.DynamicType()->Name()));
+    }
+  }
+  return closedMeshFromSoup(soup, file);
+}
+
+}  // namespace xgauge

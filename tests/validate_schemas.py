@@ -52,8 +52,13 @@ RULES = [
     ("examples", "stl_with_hole.json", "part_model"),
     ("parts", "*.json", "part_model"),
     ("datasets", "*.json", "recipe"),
+    ("tests/data/htc2022", "machine.json", "machine"),
+    ("tests/data/htc2022", "job.json", "job"),
+    ("tests/data/htc2022", "disc.json", "part_model"),
+    ("tests/data/htc2022", "material.json", "material"),
+    ("tests/data/htc2022", "curve_recipe.json", "recipe"),
 ]
-FOLDERS = ["examples", "parts", "datasets"]
+FOLDERS = ["examples", "parts", "datasets", "tests/data/htc2022"]
 SCHEMA_DIR = pathlib.Path("docs") / "schemas"
 
 

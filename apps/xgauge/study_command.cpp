@@ -15,8 +15,8 @@ void addStudyCommand(CLI::App& app, StudyArguments& args) {
       "study", "Measure every combination of shots of a simulated dataset; tabulate the errors");
   cmd->add_option("dataset", args.dataset, "Dataset folder with truth.json (xgauge simulate)")->required();
   cmd->add_option("-s,--settings", args.settings, "Study settings: a job without radiographs (JSON)")->required();
-  cmd->add_option("-c,--combinations", args.combinations, "pairs or pairs+rotated")
-      ->check(CLI::IsMember({"pairs", "pairs+rotated"}));
+  cmd->add_option("-c,--combinations", args.combinations, "pairs, pairs+rotated or turned-pairs")
+      ->check(CLI::IsMember({"pairs", "pairs+rotated", "turned-pairs"}));
   cmd->add_option("--limit", args.limit, "Only the first N runs (0 = all)")->check(CLI::NonNegativeNumber);
   cmd->add_flag("--images", args.images,
                 "Also write each run's simulated and difference images and its report.html");

@@ -213,6 +213,14 @@ nlohmann::json shotsJson(const Recipe& recipe, const Machine& machine) {
   return shots;
 }
 
+// The dataset's machine: the recipe's, with the turntable its rotations
+// name.
+nlohmann::json machineOf(const Machine& machine, const Recipe& recipe) {
+  Machine out = machine;
+  if (recipe.turntable) out.turntable = recipe.turntable;
+  return out.toJson();
+}
+
 // The dead pixels of the detector pattern, [[u, v], ...].
 nlohmann::json deadPixelsJson(const DetectorPattern& pattern) {
   nlohmann::json dead = nlohmann::json::array();
@@ -327,7 +335,7 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
       {"recipe", recipe.file.string()},
       {"description", recipe.description},
       {"seed", recipe.seed},
-      {"machine", machine.toJson()},
+      {"machine", machineOf(machine, recipe)},
       {"beam", beam.toJson()},
       {"material",
        {{"compound", material_layer.compound}, {"density_g_cm3", material_layer.density_g_cm3}}},

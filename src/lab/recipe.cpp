@@ -31,7 +31,8 @@ Pose turnAbout(const Pose& pose, const Vec3& axis, double angle_deg, const Vec3&
 
 }  // namespace
 
-std::vector<ShotPlan> planShots(const ConfigNode& shots, const Vec3& pivot_part_mm, uint64_t seed) {
+std::vector<ShotPlan> planShots(const ConfigNode& shots, const Vec3& pivot_part_mm, uint64_t seed,
+                                std::optional<Turntable>* turntable) {
   const Pose base = poseFromConfig(shots.at("base_pose"));
   std::vector<ShotPlan> plan;
 
@@ -64,6 +65,15 @@ std::vector<ShotPlan> planShots(const ConfigNode& shots, const Vec3& pivot_part_
     std::uniform_real_distribution<double> turn(0.0, 2.0 * std::numbers::pi);
     const Pose start = r->has("base_pose") ? poseFromConfig(r->at("base_pose")) : base;
     const Vec3 pivot_world = start.apply(pivot_part_mm);
+    const bool calibrated = r->get<bool>("turntable", false);
+    if (calibrated && turntable) {
+      Turntable stage;
+      stage.point_mm = pivot_world;
+      stage.direction = axis;
+      // A stated wobble is the axis's own uncertainty.
+      if (wobble > 0.0) stage.direction_uncertainty_deg = std::min(wobble, 10.0);
+      *turntable = stage;
+    }
     const Vec3 across = axis.unitOrthogonal();
     for (size_t i = 0; i < angles.size(); ++i) {
       ShotPlan shot;
@@ -125,7 +135,7 @@ Recipe Recipe::load(const std::filesystem::path& path) {
   const BoundingBox box = boundingBox(mesh);
   const Vec3 pivot =
       shots.has("pivot_mm") ? vec3(shots.at("pivot_mm")) : Vec3(0.5 * (box.min_mm + box.max_mm));
-  recipe.shots = planShots(shots, pivot, recipe.seed);
+  recipe.shots = planShots(shots, pivot, recipe.seed, &recipe.turntable);
 
   if (auto white = root.find("white_region")) {
     const auto r = white->as<std::vector<int>>();

@@ -39,6 +39,7 @@ DatasetTruth DatasetTruth::load(const std::filesystem::path& truth_json) {
     shot.pattern = s.get<std::string>("pattern");
     if (s.has("distance_mm")) shot.distance_mm = s.at("distance_mm").number();
     if (s.has("reference")) shot.reference = s.get<std::string>("reference");
+    if (s.has("nominal_angle_deg")) shot.nominal_angle_deg = s.at("nominal_angle_deg").number();
     // The pose's 4x4 matrix is exact; the Euler angles beside it are for people.
     const auto m = s.at("pose").get<std::vector<double>>("matrix");
     if (m.size() != 16) s.at("pose").at("matrix").fail("expected 16 numbers");

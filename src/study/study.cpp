@@ -136,6 +136,7 @@ StudyRun readRunResult(const fs::path& file, const std::string& id, const Datase
 struct Combination {
   std::string id;
   std::vector<std::string> shots;  // first is the free one
+  bool turned = false;             // the others turned on the turntable
 };
 
 // The translated series of the dataset's own description: a shot that
@@ -155,13 +156,35 @@ std::vector<const TruthShot*> translatedSeries(const DatasetTruth& truth) {
   return series;
 }
 
+// Every pair of the dataset's rotations on its calibrated turntable, the
+// first free and the second turned.
+std::vector<Combination> turnedPairs(const DatasetTruth& truth,
+                                     const std::vector<const TruthShot*>& rotated) {
+  if (!truth.machine.contains("turntable"))
+    fail(
+        "{}: turned pairs need the dataset's rotations on a calibrated turntable (the recipe's "
+        "shots.rotations.turntable), whose axis its machine states",
+        (truth.folder / "truth.json").string());
+  std::vector<Combination> out;
+  for (size_t a = 0; a < rotated.size(); ++a)
+    for (size_t b = a + 1; b < rotated.size(); ++b)
+      out.push_back(
+          {rotated[a]->name + "-" + rotated[b]->name, {rotated[a]->name, rotated[b]->name}, true});
+  return out;
+}
+
 std::vector<Combination> combinations(const DatasetTruth& truth, const std::string& kind) {
-  const std::vector<const TruthShot*> translated = translatedSeries(truth);
   std::vector<const TruthShot*> rotated;
   for (const auto& s : truth.shots)
     if (s.pattern == "rotated") rotated.push_back(&s);
-  if (kind != "pairs" && kind != "pairs+rotated")
-    fail("unknown combinations '{}' (known: pairs, pairs+rotated)", kind);
+  if (kind != "pairs" && kind != "pairs+rotated" && kind != "turned-pairs")
+    fail("unknown combinations '{}' (known: pairs, pairs+rotated, turned-pairs)", kind);
+  if (kind == "turned-pairs") {
+    std::vector<Combination> out = turnedPairs(truth, rotated);
+    if (out.empty()) fail("the dataset has no two rotations to make turned pairs of");
+    return out;
+  }
+  const std::vector<const TruthShot*> translated = translatedSeries(truth);
   std::vector<Combination> out;
   for (size_t a = 0; a < translated.size(); ++a)
     for (size_t b = a + 1; b < translated.size(); ++b) {
@@ -182,7 +205,7 @@ std::vector<Combination> combinations(const DatasetTruth& truth, const std::stri
 
 nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& truth,
                         const std::vector<std::string>& shots, const std::string& id,
-                        const fs::path& machine_file, const fs::path& material_file) {
+                        const fs::path& machine_file, const fs::path& material_file, bool turned) {
   nlohmann::json job = settings;
   job.erase("material");
   // With "previous_frames", each shot's lag is subtracted with the shot the
@@ -217,6 +240,10 @@ nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& trut
       r["previous"] = fs::absolute(previous->file).string();
     if (i == 0) {
       r["pattern"] = "free";
+    } else if (turned) {
+      r["pattern"] = "turned";
+      r["reference"] = first.name;
+      r["angle_deg"] = s.nominal_angle_deg - first.nominal_angle_deg;
     } else if (s.pattern == "rotated") {
       r["pattern"] = "rotated";
       r["reference"] = first.name;
@@ -447,8 +474,8 @@ std::vector<nlohmann::json> studyJobs(const StudyOptions& options, const nlohman
                                       std::vector<std::string>& free_dimensions) {
   std::vector<nlohmann::json> jobs;
   for (const auto& c : runs) {
-    jobs.push_back(
-        studyJob(settings, truth, c.shots, c.id, records.machine_file, records.material_file));
+    jobs.push_back(studyJob(settings, truth, c.shots, c.id, records.machine_file,
+                            records.material_file, c.turned));
     // A verification named relative to the settings file, as every run's
     // job.json records it: absolutely.
     if (const auto v = settings.find("verification"); v != settings.end() && v->is_string())

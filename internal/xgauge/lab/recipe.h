@@ -37,6 +37,8 @@
 //                     spherical voids in the part frame, in every shot (lab/defect.h)
 #pragma once
 
+#include "xgauge/xray/machine.h"
+
 #include "xgauge/core/config.h"
 #include "xgauge/core/transform.h"
 #include "xgauge/image/image.h"
@@ -71,6 +73,10 @@ struct Recipe {
   std::filesystem::path part_file;
   std::map<std::string, double> true_dimensions;  // by name; others take their nominal
   std::vector<ShotPlan> shots;
+  // "rotations": {"turntable": true}: the rotary stage is the machine's
+  // calibrated turntable, whose axis (through the pivot, along the
+  // rotations' axis) the dataset's machine states.
+  std::optional<Turntable> turntable;
   std::optional<PixelRect> white_region;
   std::vector<Defect> defects;  // checked: each entirely inside the part at its true dimensions
   // "characterization": {"frames": N}: the detector's characterisation
@@ -85,6 +91,9 @@ struct Recipe {
 
 // Plans the shots of a `shots` section for a part whose rotations turn about
 // `pivot_part_mm`; `seed` drives the stage's angle jitter and wobble.
-std::vector<ShotPlan> planShots(const ConfigNode& shots, const Vec3& pivot_part_mm, uint64_t seed);
+// With `turntable` given, a calibrated stage's axis ("turntable": true) is
+// written there.
+std::vector<ShotPlan> planShots(const ConfigNode& shots, const Vec3& pivot_part_mm, uint64_t seed,
+                                std::optional<Turntable>* turntable = nullptr);
 
 }  // namespace xgauge

@@ -21,6 +21,7 @@ struct TruthShot {
   std::string pattern;       // "free", "translated", "rotated"
   double distance_mm = 0.0;  // translated: from the reference
   std::string reference;     // translated: the shot it was moved from
+  double nominal_angle_deg = 0.0;  // rotated: the stage's nominal angle
   Pose pose;
 };
 

@@ -131,12 +131,14 @@ class PreparedShots {
 };
 
 // A job (as JSON, also written as each run's record) measuring `shots` of
-// the dataset: the first free, the others translated (or rotated) from it;
-// it names the machine and material files the study wrote as records.
+// the dataset: the first free, the others translated (or rotated) from it,
+// or with `turned` turned on the dataset's turntable by the difference of
+// their nominal angles; it names the machine and material files the study
+// wrote as records.
 nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& truth,
                         const std::vector<std::string>& shots, const std::string& id,
                         const std::filesystem::path& machine_file,
-                        const std::filesystem::path& material_file);
+                        const std::filesystem::path& material_file, bool turned = false);
 // The inputs of one run: the job parsed and checked against the part model,
 // the shared part, machine and material, and its prepared shots.
 MeasurementInputs studyRunInputs(const nlohmann::json& job, const StudyInputs& inputs,

@@ -108,12 +108,23 @@ class BandTerms final : public raster::PathTerms {
     const double px = ((column + 0.5) / n - machine_.cx_px) * machine_.pitch_u_mm;
     const double py = (machine_.cy_px - (row + 0.5) / n) * machine_.pitch_v_mm;
     const double* normal = rates_.normalOf(triangle);
-    const double rn =
-        px * normal[0] + py * normal[1] - machine_.source_detector_distance_mm * normal[2];
-    if (rn == 0.0) return;  // a ray in the plane: the triangle is seen edge-on
-    const double alpha = sign / rn, beta = alpha * lambda;
+    const double d = machine_.source_detector_distance_mm;
     const double* q = rates_.ratesOf(triangle);
     double* g = at(row, column);
+    if (machine_.tilted()) {
+      // The ray r = P - S to the tilted panel's point P = R (px, py, 0).
+      const Vec3 r = machine_.detector_rotation.col(0) * px +
+                     machine_.detector_rotation.col(1) * py - Vec3(0.0, 0.0, d);
+      const double rn = r.x() * normal[0] + r.y() * normal[1] + r.z() * normal[2];
+      if (rn == 0.0) return;  // a ray in the plane: the triangle is seen edge-on
+      const double alpha = sign / rn, beta = alpha * lambda;
+      for (size_t k = 0; k < p_; ++k, q += 4)
+        g[k] += alpha * q[0] - beta * (r.x() * q[1] + r.y() * q[2] + r.z() / d * q[3]);
+      return;
+    }
+    const double rn = px * normal[0] + py * normal[1] - d * normal[2];
+    if (rn == 0.0) return;  // a ray in the plane: the triangle is seen edge-on
+    const double alpha = sign / rn, beta = alpha * lambda;
     for (size_t k = 0; k < p_; ++k, q += 4)
       g[k] += alpha * q[0] - beta * (px * q[1] + py * q[2] - q[3]);
   }

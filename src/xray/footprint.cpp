@@ -59,9 +59,14 @@ SampleDistances sampleDistances(const Machine& machine, const Footprint& f) {
   SampleDistances s{
       {}, machine.source_detector_distance_mm * machine.source_detector_distance_mm, &machine, f.n};
   s.px2.resize(static_cast<size_t>(f.width()));
+  // A tilted panel: |P - S|^2 = |l|^2 - 2 S.(R l) + D^2 for the panel's own
+  // coordinates l = (px, py, 0), still a column's term plus a row's.
+  const Vec3 source = machine.sourceWorld();
+  s.cross_u = machine.tilted() ? 2.0 * source.dot(machine.detector_rotation.col(0)) : 0.0;
+  s.cross_v = machine.tilted() ? 2.0 * source.dot(machine.detector_rotation.col(1)) : 0.0;
   for (int k = 0; k < f.width(); ++k) {
     const double px = ((f.col_begin + k + 0.5) / f.n - machine.cx_px) * machine.pitch_u_mm;
-    s.px2[static_cast<size_t>(k)] = px * px;
+    s.px2[static_cast<size_t>(k)] = px * px - s.cross_u * px;
   }
   return s;
 }

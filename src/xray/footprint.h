@@ -51,9 +51,11 @@ struct SampleDistances {
   double d2;
   const Machine* machine;
   int n;
+  // A tilted panel's cross terms 2 S.(R e_u), 2 S.(R e_v); 0 untilted.
+  double cross_u = 0.0, cross_v = 0.0;
   double py2d2(int sample_row) const {
     const double py = (machine->cy_px - (sample_row + 0.5) / n) * machine->pitch_v_mm;
-    return py * py + d2;
+    return py * py - cross_v * py + d2;
   }
 };
 SampleDistances sampleDistances(const Machine& machine, const Footprint& f);

@@ -33,6 +33,20 @@ Turntable turntableFromConfig(const ConfigNode& node) {
 
 }  // namespace
 
+void Machine::setDetectorPose(double tilt_u_deg, double tilt_v_deg, double rotation_deg) {
+  detector_tilt_deg = {tilt_u_deg, tilt_v_deg};
+  detector_rotation_deg = rotation_deg;
+  detector_rotation =
+      Pose::fromEulerDeg(Vec3(tilt_u_deg, tilt_v_deg, rotation_deg), Vec3::Zero()).rotation;
+}
+
+Vec2 Machine::projectTilted(const Vec3& world) const {
+  const Vec3 source = sourceWorld();
+  const Vec3 on_panel = source + magnificationAt(world) * (world - source);
+  const Vec3 local = detector_rotation.transpose() * on_panel;
+  return {local.x() / pitch_u_mm + cx_px, cy_px - local.y() / pitch_v_mm};
+}
+
 Pose Turntable::turn(const Pose& reference, double angle_deg) const {
   const Mat3 turn = Eigen::AngleAxisd(angle_deg * kDegToRad, direction).toRotationMatrix();
   Pose out = reference;
@@ -61,6 +75,13 @@ Machine Machine::fromConfig(const ConfigNode& node) {
     m.cy_px = 0.5 * m.rows;
   }
   if (auto lag = detector.find("lag_fraction")) m.lag_fraction = lag->number(0.0, 0.5);
+  if (detector.has("tilt_deg") || detector.has("rotation_deg")) {
+    const auto tilt = detector.has("tilt_deg") ? pair(detector.at("tilt_deg"), -10.0, 10.0)
+                                               : std::array<double, 2>{0.0, 0.0};
+    const double rotation =
+        detector.has("rotation_deg") ? detector.at("rotation_deg").number(-10.0, 10.0) : 0.0;
+    m.setDetectorPose(tilt[0], tilt[1], rotation);
+  }
   // A characterised detector: its lag where the machine states none, and its
   // column crosstalk (the halo is read by the jobs, xray/detector_file.h).
   if (auto name = detector.find("characterization")) {
@@ -83,6 +104,12 @@ Machine Machine::fromConfig(const ConfigNode& node) {
       m.source_detector_distance_uncertainty_mm = d->number(0.0, 1e3);
     if (auto p = u->find("pixel_pitch_relative"))
       m.pixel_pitch_uncertainty_relative = p->number(0.0, 0.1);
+    if (auto pose = u->find("detector_pose_deg")) {
+      if (pose->size() != 3)
+        pose->fail("expected [tilt about u, tilt about v, rotation] in degrees");
+      for (size_t k = 0; k < 3; ++k)
+        m.detector_pose_uncertainty_deg[k] = (*pose)[k].number(0.0, 10.0);
+    }
     if (auto g = u->find("lag_fraction")) {
       if (std::isnan(m.lag_fraction))
         g->fail("a lag fraction's uncertainty needs detector.lag_fraction");
@@ -126,6 +153,14 @@ nlohmann::json Machine::toJson() const {
        {{"source_detector_distance_mm", source_detector_distance_uncertainty_mm},
         {"pixel_pitch_relative", pixel_pitch_uncertainty_relative}}}};
   if (!std::isnan(lag_fraction)) out["detector"]["lag_fraction"] = lag_fraction;
+  if (tilted()) {
+    out["detector"]["tilt_deg"] = {detector_tilt_deg[0], detector_tilt_deg[1]};
+    out["detector"]["rotation_deg"] = detector_rotation_deg;
+  }
+  if (detector_pose_uncertainty_deg != std::array<double, 3>{0.0, 0.0, 0.0})
+    out["uncertainty"]["detector_pose_deg"] = {detector_pose_uncertainty_deg[0],
+                                               detector_pose_uncertainty_deg[1],
+                                               detector_pose_uncertainty_deg[2]};
   if (!std::isnan(lag_fraction_uncertainty))
     out["uncertainty"]["lag_fraction"] = lag_fraction_uncertainty;
   if (turntable)

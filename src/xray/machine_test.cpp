@@ -4,6 +4,7 @@
 #include <unistd.h>
 #include <filesystem>
 #include <fstream>
+#include "core/expect_error.h"
 #include "xgauge/core/error.h"
 
 namespace xgauge {
@@ -29,6 +30,51 @@ TEST(Machine, ProjectionFollowsPartsConventions) {
   // JSON round trip.
   const Machine again = Machine::fromConfig(ConfigNode::fromJson(m.toJson(), "x"));
   EXPECT_EQ(again.toJson(), m.toJson());
+}
+
+TEST(Machine, ATiltedDetectorProjectsOntoItsOwnPoints) {
+  const ConfigNode node = ConfigNode::fromJson(nlohmann::json::parse(R"({
+    "source_detector_distance_mm": 900.0,
+    "detector": {"columns": 400, "rows": 300, "pixel_pitch_mm": [0.2, 0.25],
+                 "principal_point_px": [210.5, 140.25], "tilt_deg": [0.4, -0.3],
+                 "rotation_deg": 0.2},
+    "uncertainty": {"detector_pose_deg": [0.01, 0.02, 0.005]}})"),
+                                               "machine.json");
+  const Machine m = Machine::fromConfig(node);
+  node.finish();
+  ASSERT_TRUE(m.tilted());
+  // The panel is turned about the world origin, where pixel (cx, cy) stays.
+  EXPECT_LT(m.detectorPoint(210.5, 140.25).norm(), 1e-12);
+  // Any point on the ray from the source to a pixel's detector point
+  // projects back to that pixel; its magnification is |P - S| / |W - S|.
+  for (const Vec2& pixel : {Vec2(3.5, 7.25), Vec2(399.0, 0.5), Vec2(120.0, 290.0)}) {
+    const Vec3 p = m.detectorPoint(pixel.x(), pixel.y());
+    for (double s : {0.2, 0.5, 0.9}) {
+      const Vec3 w = m.sourceWorld() + s * (p - m.sourceWorld());
+      EXPECT_LT((m.project(w) - pixel).norm(), 1e-9) << pixel.transpose() << " at " << s;
+      EXPECT_NEAR(m.magnificationAt(w), 1.0 / s, 1e-12);
+    }
+  }
+  // Tilted by 0.4 deg about u, the panel's top row is nearer the source.
+  EXPECT_GT(m.detectorPoint(210.5, 0.0).z(), 0.0);
+  // Written and read back the same.
+  const ConfigNode again = ConfigNode::fromJson(m.toJson(), "again");
+  const Machine back = Machine::fromConfig(again);
+  EXPECT_LT((back.detector_rotation - m.detector_rotation).norm(), 1e-15);
+  EXPECT_EQ(back.detector_pose_uncertainty_deg[1], 0.02);
+  // An untilted machine keeps the plain projection.
+  Machine plain = m;
+  plain.setDetectorPose(0.0, 0.0, 0.0);
+  EXPECT_FALSE(plain.tilted());
+  EXPECT_EQ(plain.detectorPoint(3.5, 7.25).z(), 0.0);
+}
+
+TEST(Machine, ADetectorTiltOutOfRangeNamesTheKey) {
+  const ConfigNode node = ConfigNode::fromJson(nlohmann::json::parse(R"({
+    "source_detector_distance_mm": 900.0,
+    "detector": {"columns": 4, "rows": 4, "pixel_pitch_mm": [0.2, 0.2], "tilt_deg": [0.4, 30]}})"),
+                                               "machine.json");
+  expectErrorMentioning([&] { Machine::fromConfig(node); }, "machine.json: /detector/tilt_deg/1");
 }
 
 TEST(Machine, DefaultPrincipalPointIsTheCentre) {

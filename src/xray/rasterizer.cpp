@@ -68,6 +68,11 @@ void setupScene(const Machine& machine, std::span<const Vec3> world_vertices,
   tbb::parallel_for(tbb::blocked_range<size_t>(0, world_vertices.size(), 4096), [&](auto range) {
     for (size_t i = range.begin(); i != range.end(); ++i) {
       const Vec3& v = world_vertices[i];
+      if (machine.tilted()) {
+        const Vec2 q = machine.project(v);
+        projected[i] = {q.x() * n, q.y() * n, machine.magnificationAt(v)};
+        continue;
+      }
       const double m = d / (d - v.z());
       projected[i] = {(v.x() * m / machine.pitch_u_mm + machine.cx_px) * n,
                       (machine.cy_px - v.y() * m / machine.pitch_v_mm) * n, m};
@@ -75,7 +80,8 @@ void setupScene(const Machine& machine, std::span<const Vec3> world_vertices,
   });
   for (size_t i = 0; i < world_vertices.size(); ++i) {
     const double z = world_vertices[i].z();
-    if (!(z >= 0.0 && z < d) || !std::isfinite(projected[i].x) || !std::isfinite(projected[i].y))
+    if (!(z >= 0.0 && z < d) || !(projected[i].m >= 1.0) || !std::isfinite(projected[i].x) ||
+        !std::isfinite(projected[i].y))
       fail("part vertex {} at z = {:.6g} mm is not between the detector plane (z = 0) and the "
            "source (z = {} mm): check the pose",
            i, z, d);

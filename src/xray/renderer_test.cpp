@@ -40,6 +40,39 @@ TriangleMesh cuboid(double sx, double sy, double sz) {
   return mesh;
 }
 
+TEST(Renderer, OnATiltedDetectorTheCuboidsPathsAreThoseOfItsPixelsRays) {
+  // The same slab seen by a panel tilted about both its axes and turned in
+  // its plane: each pixel's point sample lies on the ray to its own tilted
+  // detector point, through a slab of thickness sz.
+  for (const Vec3& angles : {Vec3(0.4, -0.3, 0.2), Vec3(-6.0, 8.0, 3.0)}) {
+    SCOPED_TRACE(angles.transpose());
+    Machine m = squareMachine(256, 0.4);
+    m.setDetectorPose(angles.x(), angles.y(), angles.z());
+    const double sx = 20, sy = 30, sz = 10;
+    const Pose pose = Pose::fromEulerDeg(Vec3::Zero(), Vec3(2.0, -3.0, 400.0));
+    std::vector<Vec3> world;
+    ImageT<double> path;
+    renderPathLength(m, posed(cuboid(sx, sy, sz), pose, world), {}, path);
+    int checked = 0;
+    for (int v = 0; v < m.rows; ++v)
+      for (int u = 0; u < m.columns; ++u) {
+        const Ray ray = pixelRay(m, u, v);
+        const Vec3 along = ray.target - ray.origin;
+        bool both = true;
+        for (double z : {405.0, 395.0}) {
+          const Vec3 hit = ray.origin + (z - ray.origin.z()) / along.z() * along;
+          both &= std::abs(hit.x() - 2.0) < 0.5 * sx - 1e-6 &&
+                  std::abs(hit.y() + 3.0) < 0.5 * sy - 1e-6;
+        }
+        if (!both) continue;
+        ASSERT_NEAR(path(u, v), sz * along.norm() / std::abs(along.z()), 1e-9)
+            << "pixel " << u << ", " << v;
+        ++checked;
+      }
+    EXPECT_GT(checked, 4000);
+  }
+}
+
 TEST(Renderer, CuboidFacingTheSourceHasClosedFormPathLength) {
   const Machine m = squareMachine(256, 0.4);
   const double sx = 20, sy = 30, sz = 10;

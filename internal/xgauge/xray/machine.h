@@ -26,6 +26,10 @@
 //                                    the point across the axis (default 0.01)
 //     .direction_uncertainty_deg     optional, 0..10: of the direction's two
 //                                    tilts (default 0.01)
+//   detector.tilt_deg                optional [about u, about v], each -10..10:
+//                                    the panel's tilt (docs/conventions.md)
+//   detector.rotation_deg            optional, -10..10: its turn in its plane
+//   uncertainty.detector_pose_deg    optional [u_tilt_u, u_tilt_v, u_rotation]
 //   description                      optional free text
 //
 // Pose JSON keys (a pose maps part to world coordinates, x_w = R x_p + t):
@@ -40,6 +44,7 @@
 #include "xgauge/core/transform.h"
 #include "xgauge/image/image.h"
 
+#include <array>
 #include <filesystem>
 #include <limits>
 #include <memory>
@@ -111,17 +116,45 @@ struct Machine {
 
   PixelRect detectorRect() const { return {0, 0, columns, rows}; }
   Vec3 sourceWorld() const { return {0.0, 0.0, source_detector_distance_mm}; }
-  // World point on the detector plane of a continuous pixel coordinate.
+  // World point on the detector of a continuous pixel coordinate.
   Vec3 detectorPoint(double pu, double pv) const {
-    return {(pu - cx_px) * pitch_u_mm, (cy_px - pv) * pitch_v_mm, 0.0};
+    const Vec3 local{(pu - cx_px) * pitch_u_mm, (cy_px - pv) * pitch_v_mm, 0.0};
+    return tilted() ? Vec3(detector_rotation * local) : local;
   }
   // Continuous pixel coordinate where the ray from the source through a world
   // point (z < D) meets the detector.
   Vec2 project(const Vec3& world) const {
+    if (tilted()) return projectTilted(world);
     const double magnification = source_detector_distance_mm / (source_detector_distance_mm - world.z());
     return {world.x() * magnification / pitch_u_mm + cx_px,
             cy_px - world.y() * magnification / pitch_v_mm};
   }
+  // The ray's magnification at a world point: |P - S| / |W - S| for the
+  // detector point P the ray from the source S through W meets; D / (D - z)
+  // on an untilted detector. Its inverse is affine over a projected plane.
+  double magnificationAt(const Vec3& world) const {
+    const double d = source_detector_distance_mm;
+    if (!tilted()) return d / (d - world.z());
+    const Vec3 n = detector_rotation.col(2);
+    return n.z() * d / (n.z() * d - n.dot(world));
+  }
+
+  // The detector's pose (docs/conventions.md, "Detector pose"): the panel
+  // turned about the world origin, the pixel (cx, cy), by
+  // R = Rz(rotation) Ry(tilt v) Rx(tilt u), angles in degrees; identity for
+  // an ideal machine. Set through setDetectorPose.
+  std::array<double, 2> detector_tilt_deg{0.0, 0.0};  // about the panel's u and v axes
+  double detector_rotation_deg = 0.0;                 // in the panel's plane
+  Mat3 detector_rotation = Mat3::Identity();
+  // Standard uncertainties of the three angles (a geometry calibration's).
+  std::array<double, 3> detector_pose_uncertainty_deg{0.0, 0.0, 0.0};
+  void setDetectorPose(double tilt_u_deg, double tilt_v_deg, double rotation_deg);
+  bool tilted() const { return !detector_rotation.isIdentity(0.0); }
+
+ private:
+  Vec2 projectTilted(const Vec3& world) const;
+
+ public:
 };
 
 Pose poseFromConfig(const ConfigNode& node);  // does not call finish()

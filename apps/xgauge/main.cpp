@@ -60,8 +60,8 @@ int main(int argc, char** argv) {
   xgauge::cli::addMeasureCommand(app, measure);
   xgauge::cli::MaterialArguments material;
   xgauge::cli::addMaterialCommand(app, material);
-  xgauge::cli::CalibrateArguments calibrate_wedge, calibrate_part;
-  xgauge::cli::addCalibrateCommand(app, calibrate_wedge, calibrate_part);
+  xgauge::cli::CalibrateArguments calibrate_wedge, calibrate_part, calibrate_geometry;
+  xgauge::cli::addCalibrateCommand(app, calibrate_wedge, calibrate_part, calibrate_geometry);
   xgauge::cli::StudyArguments study;
   xgauge::cli::addStudyCommand(app, study);
   xgauge::cli::SimulateArguments simulate;
@@ -102,7 +102,8 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("inspect")) return xgauge::cli::runInspect(inspect);
     if (app.got_subcommand("spc")) xgauge::cli::runSpc(spc);
     if (app.got_subcommand("export")) xgauge::cli::runExport(exporting);
-    if (app.got_subcommand("calibrate")) xgauge::cli::runCalibrate(app, calibrate_wedge, calibrate_part);
+    if (app.got_subcommand("calibrate"))
+      xgauge::cli::runCalibrate(app, calibrate_wedge, calibrate_part, calibrate_geometry);
   } catch (const xgauge::Error& e) {
     std::fprintf(stderr, "xgauge: error: %s\n", e.what());
     return 1;

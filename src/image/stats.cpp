@@ -75,4 +75,16 @@ double percentileOf(const Image& image, double percent) {
   return lower + fraction * (upper - lower);
 }
 
+double neighbourNoise(const Image& image, const PixelRect& region) {
+  std::vector<double> d;
+  for (int y = region.y; y < region.bottom(); ++y)
+    for (int x = region.x; x + 1 < region.right(); ++x)
+      d.push_back(
+          std::abs(static_cast<double>(image(x + 1, y)) - static_cast<double>(image(x, y))));
+  if (d.empty()) return 0.0;
+  const auto middle = d.begin() + static_cast<ptrdiff_t>(d.size() / 2);
+  std::nth_element(d.begin(), middle, d.end());
+  return 1.4826 * *middle / std::sqrt(2.0);
+}
+
 }  // namespace xgauge

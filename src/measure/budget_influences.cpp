@@ -8,6 +8,7 @@
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <memory>
 #include <utility>
@@ -180,6 +181,27 @@ void machineGeometry(const InfluenceSource& source, InfluenceMoves& out) {
              });
 }
 
+// The detector's pose as a geometry calibration stated it: each angle
+// moved by its standard uncertainty.
+void detectorPose(const InfluenceSource& source, InfluenceMoves& out) {
+  const Machine& machine = source.inputs.machine;
+  static constexpr std::array<const char*, 3> kNames{"detector tilt about u",
+                                                     "detector tilt about v", "detector rotation"};
+  for (size_t k = 0; k < 3; ++k) {
+    const double u = machine.detector_pose_uncertainty_deg[k];
+    const double angle = k < 2 ? machine.detector_tilt_deg[k] : machine.detector_rotation_deg;
+    withInputs(source, out, Propagation::kIterated, kNames[k],
+               fmt::format("{:.4f} +- {:.2g} deg", angle, u), "deg", u,
+               [k, u](MeasurementInputs& in, double amount) {
+                 std::array<double, 3> pose{in.machine.detector_tilt_deg[0],
+                                            in.machine.detector_tilt_deg[1],
+                                            in.machine.detector_rotation_deg};
+                 pose[k] += amount * u;
+                 in.machine.setDetectorPose(pose[0], pose[1], pose[2]);
+               });
+  }
+}
+
 // The known distance of each translated radiograph.
 void translations(const InfluenceSource& source, InfluenceMoves& out) {
   const MeasurementInputs& inputs = source.inputs;
@@ -322,6 +344,7 @@ constexpr InfluenceEntry kInfluences[] = {
     {"material", materialRest},       // the rest of the curve's uncertainty
     {"scatter weight, scatter width", scatterComponents},
     {"source-detector distance, pixel pitch", machineGeometry},
+    {"detector tilt about u and v, detector rotation", detectorPose},
     {"translation NAME", translations},
     {"turn NAME, turntable axis", turntable},
     {"detector lag NAME", detectorLags},

@@ -1,5 +1,7 @@
 #include "checks.h"
 
+#include "xgauge/image/stats.h"
+
 #include <fmt/format.h>
 
 #include <algorithm>
@@ -18,18 +20,6 @@ double median(std::vector<double> v) {
   if (v.empty()) return 0.0;
   std::nth_element(v.begin(), v.begin() + static_cast<ptrdiff_t>(v.size() / 2), v.end());
   return v[v.size() / 2];
-}
-
-// The noise of one pixel of a normalized image over `region`, from the
-// differences of horizontal neighbours (a smooth trend such as the heel
-// effect cancels): sigma = 1.4826 median |d| / sqrt(2).
-double neighbourNoise(const Image& image, const PixelRect& region) {
-  std::vector<double> d;
-  for (int y = region.y; y < region.bottom(); ++y)
-    for (int x = region.x; x + 1 < region.right(); ++x)
-      d.push_back(
-          std::abs(static_cast<double>(image(x + 1, y)) - static_cast<double>(image(x, y))));
-  return 1.4826 * median(std::move(d)) / std::sqrt(2.0);
 }
 
 // The magnification of the part's reference centre in radiograph r (the

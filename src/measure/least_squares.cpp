@@ -69,6 +69,10 @@ std::vector<double> linearSteps(const ForwardModel& model, std::span<const doubl
       case ParameterKind::kMaterial:
         steps.push_back(materialStep(model, i));
         break;
+      case ParameterKind::kDetector:  // turns the panel's edge by about an edge's step
+        steps.push_back(machine.pitch_u_mm * kLinearStepPx /
+                        (0.5 * machine.columns * machine.pitch_u_mm) * kRadToDeg);
+        break;
     }
   }
   return steps;
@@ -466,6 +470,7 @@ bool linearize(ForwardModel& model, std::span<const double> theta, const std::ve
     const bool known = model.poseVelocities(theta, indices, radiographs[s], moving, velocities);
     for (size_t k = 0; k < indices.size(); ++k)
       if (!known || model.kind(indices[k]) == ParameterKind::kMaterial ||
+          model.kind(indices[k]) == ParameterKind::kDetector ||
           std::find(moving.begin(), moving.end(), static_cast<int>(k)) != moving.end())
         seen[k].push_back(s);
   }

@@ -38,6 +38,8 @@ double firstStep(ParameterKind kind) {
       return 1.0;  // deg
     case ParameterKind::kMaterial:
       return 0.02;  // fraction, or 1/mm
+    case ParameterKind::kDetector:
+      return 0.2;  // deg
   }
   return 1.0;
 }

@@ -45,7 +45,11 @@ ForwardModel::ForwardModel(const MeasurementInputs& inputs)
       }()) {}
 
 ForwardModel::ForwardModel(const MeasurementInputs& inputs, const ExponentialSum& material)
-    : inputs_(inputs), part_(*inputs.part), base_material_(material), material_(material) {
+    : inputs_(inputs),
+      machine_(inputs.machine),
+      part_(*inputs.part),
+      base_material_(material),
+      material_(material) {
   XG_CHECK(
       inputs.radiographs.size() == inputs.job.radiographs.size() && !inputs.radiographs.empty(),
       "the inputs hold {} prepared radiographs for {} in the job", inputs.radiographs.size(),
@@ -85,6 +89,12 @@ void ForwardModel::useMaterial(const ExponentialSum& material) {
 }
 
 void ForwardModel::useMaterialOf(std::span<const double> theta) {
+  if (layout_.hasBlock("detector")) {
+    const double* pose = theta.data() + layout_.block("detector").front();
+    if (pose[0] != machine_.detector_tilt_deg[0] || pose[1] != machine_.detector_tilt_deg[1] ||
+        pose[2] != machine_.detector_rotation_deg)
+      machine_.setDetectorPose(pose[0], pose[1], pose[2]);
+  }
   if (material_terms_ == 0 && rate_scale_index_ < 0) return;
   const ExponentialSum wanted = materialOf(theta);
   const auto& now = material_.terms();

@@ -69,7 +69,9 @@ bool ForwardModel::poseVelocities(std::span<const double> theta, std::span<const
   std::vector<double> steps;
   std::vector<int> position;
   for (size_t k = 0; k < indices.size(); ++k) {
-    if (kind(indices[k]) == ParameterKind::kMaterial) continue;
+    if (kind(indices[k]) == ParameterKind::kMaterial ||
+        kind(indices[k]) == ParameterKind::kDetector)
+      continue;
     vertex_indices.push_back(indices[k]);
     position.push_back(static_cast<int>(k));
     // Small against any feature, large against rounding; most vertex
@@ -136,8 +138,14 @@ bool ForwardModel::addMaterialColumns(std::span<const double> theta, std::span<c
   std::vector<double> at(theta.begin(), theta.end()), plus, minus;
   for (size_t k = 0; k < p; ++k) {
     const auto i = static_cast<size_t>(indices[k]);
-    if (kind(indices[k]) != ParameterKind::kMaterial) continue;
-    const double h = 1e-4 * std::max(1.0, std::abs(theta[i]));
+    if (kind(indices[k]) != ParameterKind::kMaterial &&
+        kind(indices[k]) != ParameterKind::kDetector)
+      continue;
+    // A detector angle: 0.01 deg moves the panel's edge by a tenth of a
+    // pixel, well above the float image's rounding.
+    const double h = kind(indices[k]) == ParameterKind::kDetector
+                         ? 1e-2
+                         : 1e-4 * std::max(1.0, std::abs(theta[i]));
     at[i] = std::min(theta[i] + h, upper()[i]);
     const double hi = at[i];
     const bool ok_plus = residuals(at, level, samples, radiographs, plus);
@@ -164,7 +172,7 @@ bool ForwardModel::residualsAndJacobian(std::span<const double> theta, std::span
       out.clear(), jacobian.clear();
       return false;
     }
-  // Material parameters: central differences of whole renders (a failure
+  // Material and detector parameters: central differences of whole renders (a failure
   // leaves the model on the last one's material, as it finds it again).
   if (!addMaterialColumns(theta, indices, level, samples, radiographs, out, jacobian)) {
     out.clear(), jacobian.clear();

@@ -139,6 +139,21 @@ void ForwardModel::freeMaterial(const ExponentialSum& material, std::vector<doub
   setMaterial(materialOf(theta));
 }
 
+void ForwardModel::freeDetectorPose(std::vector<double>& theta, double reach_deg,
+                                    bool with_rotation) {
+  XG_CHECK(!layout_.hasBlock("detector"), "the detector's pose is free already");
+  XG_CHECK(theta.size() == static_cast<size_t>(size()), "theta has the wrong size");
+  const std::vector<double> start{machine_.detector_tilt_deg[0], machine_.detector_tilt_deg[1],
+                                  machine_.detector_rotation_deg};
+  std::vector<double> lower, upper;
+  for (double s : start)
+    lower.push_back(std::max(-10.0, s - reach_deg)), upper.push_back(std::min(10.0, s + reach_deg));
+  if (!with_rotation) lower[2] = upper[2] = start[2];
+  layout_.add("detector", ParameterKind::kDetector, {"tilt_u", "tilt_v", "rotation"}, lower, upper,
+              start);
+  theta.insert(theta.end(), start.begin(), start.end());
+}
+
 ExponentialSum ForwardModel::materialOf(std::span<const double> theta) const {
   if (rate_scale_index_ >= 0)
     return base_material_.withScaledRates(theta[static_cast<size_t>(rate_scale_index_)]);
@@ -184,6 +199,8 @@ std::vector<int> ForwardModel::jointIndices() const {
     for (int i : poseIndices(r))
       if (layout_.isFree(i)) all.push_back(i);
   for (int i : materialIndices()) all.push_back(i);
+  for (int i : detectorIndices())
+    if (layout_.isFree(i)) all.push_back(i);
   return all;
 }
 

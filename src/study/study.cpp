@@ -400,6 +400,26 @@ namespace {
 // machine so that every run subtracts it instead of estimating it from each
 // shot and its previous frame (which cannot be told where the previous
 // frame's edges all fall in this shot's shadow, as with small rotations).
+// The settings' "machine", when they name one, in place of the dataset's:
+// a lab that measures with what it believes its machine to be (an ideal
+// panel where the dataset's is tilted, say). Its detector file, named
+// relative to it, is named absolutely, as the study's record sits elsewhere.
+void useSettingsMachine(nlohmann::json& settings, nlohmann::json& machine,
+                        const fs::path& settings_file) {
+  const auto it = settings.find("machine");
+  if (it == settings.end()) return;
+  if (!it->is_string()) fail("{}: /machine: expected a file name", settings_file.string());
+  const fs::path file = settings_file.parent_path() / it->get<std::string>();
+  const ConfigNode node = ConfigNode::loadFile(file);
+  Machine::fromConfig(node);  // checked as any machine file
+  node.finish();
+  machine = node.json();
+  if (auto c = machine["detector"].find("characterization");
+      c != machine["detector"].end() && c->is_string())
+    *c = fs::absolute(file.parent_path() / c->get<std::string>()).string();
+  settings.erase("machine");
+}
+
 void applyStudyLag(nlohmann::json& settings, nlohmann::json& machine,
                    const fs::path& settings_file) {
   const auto it = settings.find("lag_fraction");
@@ -678,6 +698,7 @@ StudySummary runStudy(const StudyOptions& options) {
   DatasetTruth truth = DatasetTruth::load(options.dataset / "truth.json");
   const ConfigNode settings_node = ConfigNode::loadFile(options.settings);
   nlohmann::json settings = settings_node.json();
+  useSettingsMachine(settings, truth.machine, options.settings);
   applyStudyLag(settings, truth.machine, options.settings);
   createOutputFolder(options.output / "runs");
 

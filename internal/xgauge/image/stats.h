@@ -33,4 +33,10 @@ std::optional<ValueRange> finiteRange(const Image& image);
 // outside [0, 100] or no pixel is finite.
 double percentileOf(const Image& image, double percent);
 
+// The noise of one pixel of a normalized image over `region`, from the
+// differences of horizontal neighbours (a smooth trend such as the heel
+// effect cancels): sigma = 1.4826 median |d| / sqrt(2); 0 for a region
+// without two pixels side by side.
+double neighbourNoise(const Image& image, const PixelRect& region);
+
 }  // namespace xgauge

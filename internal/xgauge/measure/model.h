@@ -23,7 +23,10 @@
 // material of M terms: "material/fraction<k>", M - 1 stick-breaking fractions
 // u_k in [0, 1] (a_1 = u_1, a_k = u_k (1 - a_1 - ... - a_{k-1}), the last
 // term takes the rest, so the weights are >= 0 and sum to 1 for any u in the
-// box) and "material/rate<k>", the M rates mu_k in [0, 10] /mm.
+// box) and "material/rate<k>", the M rates mu_k in [0, 10] /mm;
+// and, for a geometry calibration (freeDetectorPose), "detector/tilt_u",
+// "detector/tilt_v" and "detector/rotation": the panel's pose (deg,
+// xray/machine.h), from then on read from theta at every evaluation.
 //
 // Infeasible parameters (dimensions the part model cannot take, a surface
 // that folds, a vertex outside the beam) are a status: loss() returns nullopt
@@ -105,7 +108,9 @@ class ForwardModel {
   const MeasurementInputs& inputs() const { return inputs_; }
   const MeasurementJob& job() const { return inputs_.job; }
   const PartModel& part() const { return part_; }
-  const Machine& machine() const { return inputs_.machine; }
+  // The machine as rendered now: the inputs', with theta's detector pose
+  // when it is free.
+  const Machine& machine() const { return machine_; }
   int radiographCount() const { return static_cast<int>(inputs_.radiographs.size()); }
   const PreparedRadiograph& radiograph(int index) const {
     return *inputs_.radiographs[static_cast<size_t>(index)];
@@ -138,6 +143,11 @@ class ForwardModel {
   void freeMaterial(const ExponentialSum& material, std::vector<double>& theta,
                     double rate_floor_per_mm = 0.0);
   std::vector<int> materialIndices() const { return layout_.block("material"); }
+  // Appends the detector's pose (tilt_u, tilt_v, rotation, deg) to the
+  // layout and to `theta`, each within +-reach_deg of the machine's; the
+  // rotation held where it is unless `with_rotation`.
+  void freeDetectorPose(std::vector<double>& theta, double reach_deg, bool with_rotation);
+  std::vector<int> detectorIndices() const { return layout_.block("detector"); }
   // The refinement's rate scale, -1 when the job does not refine the
   // material; its prior's standard uncertainty (relative), the scale that
   // moves the curve by the material's stated transmission uncertainty at
@@ -226,7 +236,8 @@ class ForwardModel {
   bool forEachSimulated(
       std::span<const double> theta, int level, int samples, std::span<const int> radiographs,
       const std::function<void(const PreparedRadiograph&, const PixelRect&, const Image&)>& use);
-  // Rebuilds the table when theta's material differs from the current one.
+  // Rebuilds the table when theta's material differs from the current one,
+  // and sets the detector's pose when it is free.
   void useMaterialOf(std::span<const double> theta);
   void useMaterial(const ExponentialSum& material);  // keeps base_material_
 
@@ -260,6 +271,7 @@ class ForwardModel {
                           std::span<const double> out, std::vector<double>& jacobian);
 
   const MeasurementInputs& inputs_;
+  Machine machine_;  // the inputs', with theta's detector pose when free
   PartModel part_;  // this model's own copy: evaluating one is not thread-safe
   ExponentialSum base_material_;  // as given (setMaterial)
   ExponentialSum material_;       // as rendered now: the base, or theta's

@@ -8,6 +8,8 @@
 //   <radiograph>/axis/{azimuth,elevation}  translated radiographs: the
 //                                      direction (deg) of the known move
 //   material/fraction<k>, material/rate<k>  a calibration's free material
+//   detector/{tilt_u,tilt_v,rotation}  a geometry calibration's free
+//                                      detector pose (deg)
 // and stages name what they free ("t03/rotation", "dim") instead of computing
 // offsets into the parameter vector. The vector theta holds every parameter
 // in the order they were added; fixed ones simply keep their value.
@@ -19,7 +21,7 @@
 
 namespace xgauge {
 
-enum class ParameterKind { kDimension, kRotation, kPosition, kAxis, kMaterial };
+enum class ParameterKind { kDimension, kRotation, kPosition, kAxis, kMaterial, kDetector };
 
 struct Parameter {
   std::string name;  // "<block>/<component>"

@@ -6,9 +6,11 @@
 #include "xgauge/core/error.h"
 
 #include <hdf5.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <cstdio>
 
 #include <algorithm>
 #include <cerrno>
@@ -489,6 +491,26 @@ bool readString(int fd, std::string& text, uint64_t limit) {
   }
 }
 
+// The child's address space capped at what it has (the parent's, copied on
+// write) plus the largest image a read may return and a margin for
+// libhdf5's own metadata: a crafted header that declares a 2 GB metadata
+// block (scripts/fuzz.sh found one) then fails its malloc, which libhdf5
+// reports, instead of growing the process.
+void capChildMemory() {
+  long pages = 0;
+  if (std::FILE* statm = std::fopen("/proc/self/statm", "r")) {
+    if (std::fscanf(statm, "%ld", &pages) != 1) pages = 0;
+    std::fclose(statm);
+  }
+  if (pages <= 0) return;
+  constexpr uint64_t kMetadataMargin = uint64_t{256} << 20;
+  const uint64_t now =
+      static_cast<uint64_t>(pages) * static_cast<uint64_t>(::sysconf(_SC_PAGESIZE));
+  const rlimit cap{now + tiffMemoryLimit() + kMetadataMargin,
+                   now + tiffMemoryLimit() + kMetadataMargin};
+  ::setrlimit(RLIMIT_AS, &cap);
+}
+
 }  // namespace
 
 // libhdf5 1.10 (Debian 12) can crash on a crafted file (scripts/fuzz.sh
@@ -512,6 +534,7 @@ Image readNxTomo(const fs::path& path, std::string_view selector, std::string* s
   }
   if (child == 0) {
     ::close(fds[0]);
+    capChildMemory();
     childReads(fds[1], path, selector, sha256 != nullptr, expected);
   }
   ::close(fds[1]);

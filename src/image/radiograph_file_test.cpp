@@ -392,6 +392,19 @@ void writePartialNxTomo(const fs::path& path, bool with_image_key, hsize_t key_l
 }
 
 TEST(NxTomo, HostileFilesAreRefusedNamingTheDataset) {
+  // One whose header declares a 2 GB metadata block: refused, and the
+  // reading process may not grow by more than the image cap to find out.
+  const std::filesystem::path greedy =
+      std::filesystem::path(XGAUGE_SOURCE_DIR) /
+      "fuzz/known/fuzz_nxtomo/libhdf5-1.10.8-2gb-metadata-alloc.nxs";
+  std::string greedy_message;
+  try {
+    readNxTomo(greedy, "");
+  } catch (const Error& e) {
+    greedy_message = e.what();
+  }
+  EXPECT_TRUE(contains(greedy_message, "libhdf5-1.10.8-2gb-metadata-alloc.nxs: "))
+      << greedy_message;
   TestFolder folder;
   writePartialNxTomo(folder / "nokey.nxs", false, 0, 1, 4, 4, true);
   std::string message = messageOf(folder / "nokey.nxs");

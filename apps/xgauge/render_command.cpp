@@ -94,11 +94,6 @@ std::map<std::string, double> parseOverrides(const std::vector<std::string>& ite
   return out;
 }
 
-PartModel loadPart(const std::string& file) {
-  const bool stl = file.size() > 4 && file.substr(file.size() - 4) == ".stl";
-  return stl ? PartModel::fromStl(file) : PartModel::load(file);
-}
-
 Pose scenePose(const RenderArguments& args) {
   if (!args.pose.empty()) return loadPose(args.pose);
   if (args.rotation_deg.size() == 3 && args.translation_mm.size() == 3)
@@ -121,7 +116,7 @@ RenderOptions sceneOptions(const RenderArguments& args) {
 
 int runGradientCheck(const GradientArguments& args) {
   const RenderArguments& scene = args.scene;
-  const PartModel part = loadPart(scene.part);
+  const PartModel part = PartModel::fromFile(scene.part);
   const std::vector<double> values = part.values(parseOverrides(scene.set));
   const Pose pose = scenePose(scene);
   const Machine machine = Machine::load(scene.machine);
@@ -170,7 +165,7 @@ void runRender(const RenderArguments& args) {
   if (!args.png.empty()) checkOutputFile(args.png);
   OutputTransaction outputs;
   // Inputs: part, dimension values, pose, machine, material.
-  const PartModel part = loadPart(args.part);
+  const PartModel part = PartModel::fromFile(args.part);
   const std::vector<double> values = part.values(parseOverrides(args.set));
   const TriangleMesh mesh = part.mesh(values);
   const Pose pose = scenePose(args);

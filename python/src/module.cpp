@@ -101,7 +101,7 @@ ConfigNode configFrom(const py::handle& spec, const std::string& what) {
 PartModel partFrom(const py::handle& spec, const fs::path& base_dir) {
   if (isPath(spec)) {
     const fs::path path = py::cast<fs::path>(spec);
-    return path.extension() == ".stl" ? PartModel::fromStl(path) : PartModel::load(path);
+    return PartModel::fromFile(path);
   }
   const ConfigNode root = configFrom(spec, "part");
   PartModel part = PartModel::fromConfig(root, base_dir / "part.json");

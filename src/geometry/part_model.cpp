@@ -5,11 +5,13 @@
 
 #include "xgauge/core/config.h"
 #include "xgauge/geometry/mesh.h"
+#include "xgauge/geometry/step.h"
 #include "xgauge/geometry/stl.h"
 
 #include <fmt/ranges.h>
 
 #include <algorithm>
+#include <cctype>
 #include <cmath>
 #include <set>
 
@@ -291,16 +293,31 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
 }
 
 PartModel PartModel::fromStl(const std::filesystem::path& path) {
+  return fromFixedMesh(path, "stl", readStl(path));
+}
+
+PartModel PartModel::fromFile(const std::filesystem::path& path) {
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  if (extension == ".stl") return fromStl(path);
+  if (extension == ".step" || extension == ".stp")
+    return fromFixedMesh(path, "step", readStep(path, StepTessellation{}));
+  return load(path);
+}
+
+PartModel PartModel::fromFixedMesh(const std::filesystem::path& path, const char* type,
+                                   TriangleMesh mesh) {
   auto definition = std::make_shared<Definition>();
   definition->name = path.stem().string();
   definition->description = fmt::format("fixed mesh read from {}", path.string());
   SolidSpec spec;
   spec.where = SourceLocation::inFile(path.string());
-  spec.fixed_root = "stl";
+  spec.fixed_root = type;
   SolidSpec::Piece piece;
   piece.shape.type = ShapeType::kFixed;
   piece.shape.where = spec.where;
-  piece.shape.fixed = readStl(path);
+  piece.shape.fixed = std::move(mesh);
   spec.pieces.push_back(std::move(piece));
   spec.program.push_back({Csg::Op::kPiece, 0});
   definition->shape = std::make_unique<const Solid>(spec, std::span<const double>{});

@@ -125,6 +125,18 @@ TEST(Step, BoxIsReadWithItsLocation) {
   EXPECT_NEAR(b.max_mm.z(), 12.0, 1e-9);
 }
 
+TEST(Step, AStepFileIsAPartByItsExtension) {
+  // PartModel::fromFile (xgauge render, the Python module): .step and .stp
+  // in any case are fixed meshes, as an "stl" file is.
+  const std::filesystem::path path =
+      writeStep("Block.STP", BRepPrimAPI_MakeBox(30, 20, 10).Shape());
+  const PartModel part = PartModel::fromFile(path);
+  EXPECT_TRUE(part.dimensions().empty());
+  const TriangleMesh mesh = part.mesh({});
+  EXPECT_NEAR(signedVolume(mesh), 6000.0, 1e-9);
+  EXPECT_EQ(mesh.triangles.size(), 12u);
+}
+
 TEST(Step, SphereIsTessellatedNearTheChordTolerance) {
   // A seam and two degenerate pole edges. Every vertex lies on the sphere.
   // The chord tolerance is OCCT's linear deflection. OCCT divides curves at

@@ -123,6 +123,10 @@ class PartModel {
   static PartModel fromConfig(const ConfigNode& root, const std::filesystem::path& path);
   // A fixed mesh without dimensions (see readStl).
   static PartModel fromStl(const std::filesystem::path& path);
+  // Any part file by its extension: .stl (fromStl), .step or .stp (a fixed
+  // mesh tessellated at the `step` shape's default tolerances), else a part
+  // model (load).
+  static PartModel fromFile(const std::filesystem::path& path);
 
   PartModel(const PartModel& other);
   PartModel& operator=(const PartModel& other);
@@ -182,6 +186,9 @@ class PartModel {
   std::optional<Invalidity> findInvalidity(std::span<const double> values) const;
   std::optional<Invalidity> findFold(std::span<const double> values, std::vector<Vec3>& out) const;
   PartModel(std::shared_ptr<const Definition> definition, std::unique_ptr<Evaluator> evaluator);
+  // A fixed mesh read from `path` (an "stl" or "step" file, `type`).
+  static PartModel fromFixedMesh(const std::filesystem::path& path, const char* type,
+                                 TriangleMesh mesh);
 
   std::shared_ptr<const Definition> definition_;  // immutable, shared by copies
   std::unique_ptr<Evaluator> evaluator_;          // compiled expressions, per copy

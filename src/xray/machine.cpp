@@ -38,6 +38,7 @@ void Machine::setDetectorPose(double tilt_u_deg, double tilt_v_deg, double rotat
   detector_rotation_deg = rotation_deg;
   detector_rotation =
       Pose::fromEulerDeg(Vec3(tilt_u_deg, tilt_v_deg, rotation_deg), Vec3::Zero()).rotation;
+  tilted_ = !detector_rotation.isIdentity(0.0);
 }
 
 Vec2 Machine::projectTilted(const Vec3& world) const {

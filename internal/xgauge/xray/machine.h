@@ -149,10 +149,13 @@ struct Machine {
   // Standard uncertainties of the three angles (a geometry calibration's).
   std::array<double, 3> detector_pose_uncertainty_deg{0.0, 0.0, 0.0};
   void setDetectorPose(double tilt_u_deg, double tilt_v_deg, double rotation_deg);
-  bool tilted() const { return !detector_rotation.isIdentity(0.0); }
+  // Whether the pose is other than the identity: read per sample by the
+  // render's derivatives, so kept as a flag (set by setDetectorPose only).
+  bool tilted() const { return tilted_; }
 
  private:
   Vec2 projectTilted(const Vec3& world) const;
+  bool tilted_ = false;
 
  public:
 };

@@ -6,6 +6,7 @@ set -euo pipefail
 packages=(
   build-essential cmake ninja-build pkg-config git
   libeigen3-dev        # vectors, transforms, small linear algebra
+  libboost-dev         # Boost.Math (header-only): Student's t, normal and chi-square quantiles
   libtbb-dev           # oneTBB: parallel loops
   libtiff-dev          # TIFF read/write
   libhdf5-dev          # NeXus NXtomo radiographs (libhdf5's C API)

@@ -25,11 +25,18 @@ error.
 
 Usage: scripts/lab2_coverage.py SUITE [--out out/lab2_coverage]
        [--xgauge build/apps/xgauge/xgauge] [--threads 2] [--stated]
-       [--parts prism wedge bracket shaft] [--table]
+       [--parts prism wedge bracket shaft] [--verified] [--table]
+
+With --verified, each part and pattern is first verified on lab2's master of
+the same part type (its three shot sets measured under the same conditions,
+its CMM certificate; `xgauge verify`) and the production part is measured
+naming that verification: its values corrected by the master's bias, its U
+the substitution's.
 """
 
 import argparse
 import json
+import os
 import sys
 from collections import defaultdict
 from pathlib import Path
@@ -40,7 +47,10 @@ ROOT = Path(__file__).resolve().parent.parent
 PATTERNS = ("job_pair.json", "job_pair_rotated.json")
 
 
-def measure_part(args, folder, job_file, out, machine, material):
+def prepare_job(args, job_file, out, machine, material):
+    """The lab's job with the calibrated material and, unless --stated, the
+    characterised machine (its detector file's halo in use, the job's own
+    stated halo left out), written to OUT/job.json."""
     job = absolutize(json.loads(job_file.read_text()), job_file.parent)
     job["material"] = str(material)
     if not args.stated:
@@ -48,6 +58,41 @@ def measure_part(args, folder, job_file, out, machine, material):
         job.pop("scatter", None)
     out.mkdir(parents=True, exist_ok=True)
     (out / "job.json").write_text(json.dumps(job, indent=2))
+    return job
+
+
+def verify_master(args, lab, part, pattern, out, machine, material):
+    """`xgauge verify` of the part's master (lab2's master sets, its CMM
+    certificate) under the production job's conditions; the verification
+    file's path, or None with the reason in the row."""
+    stem = pattern.replace("job_", "").replace(".json", "")
+    mroot = lab / "measured" / f"{part}_master"
+    vfile = mroot / f"verify_{stem}.json"
+    if not vfile.exists():
+        return None, {"reason": f"no {vfile}"}
+    vjob = json.loads(vfile.read_text())
+    files = []
+    for m in vjob["measurements"]:
+        set_out = out / stem / Path(m).parent
+        prepare_job(args, mroot / m, set_out, machine, material)
+        files.append(str(set_out / "job.json"))
+    vjob["measurements"] = files
+    (out / f"verify_{stem}.json").write_text(json.dumps(vjob, indent=2))
+    folder = out / f"verification_{stem}"
+    rc, seconds = run([args.xgauge, "verify", str(out / f"verify_{stem}.json"), "-o", str(folder),
+                       "--quiet", "-j", str(args.threads)], out / f"verify_{stem}.log")
+    row = {"rc": rc, "seconds": seconds}
+    if rc != 0:
+        row["reason"] = (out / f"verify_{stem}.log").read_text().strip().splitlines()[-1:]
+        return None, row
+    return folder / "verification.json", row
+
+
+def measure_part(args, folder, job_file, out, machine, material, verification=None):
+    job = prepare_job(args, job_file, out, machine, material)
+    if verification is not None:
+        job["verification"] = str(verification)
+        (out / "job.json").write_text(json.dumps(job, indent=2))
     rc, seconds = run([args.xgauge, "measure", str(out / "job.json"), "--truth",
                        str(job_file.parent / "truth.json"), "-o", str(out / "result"), "--quiet",
                        "-j", str(args.threads)], out / "measure.log")
@@ -61,10 +106,19 @@ def measure_part(args, folder, job_file, out, machine, material):
     row["status"] = result["status"]
     row["failures"] = result.get("failures", [])
     row["misfit"] = [c["misfit_ratio"] for c in result.get("fit_checks", [])]
-    dims = result.get("dimensions") or []
-    row["dimensions"] = {d["name"]: {"error": d["value_mm"] - truth[d["name"]],
-                                     "U": d.get("expanded_uncertainty")}
-                         for d in dims if d.get("free") and d["name"] in truth}
+    # A run that was not measured keeps its values under another name: kept
+    # here to see how far off the refused values were, never counted.
+    dims = result.get("dimensions") or result.get("rejected_dimensions") or []
+    row["dimensions"] = {}
+    for d in dims:
+        if not d.get("free") or d["name"] not in truth:
+            continue
+        item = {"error": d["value_mm"] - truth[d["name"]], "U": d.get("expanded_uncertainty")}
+        if v := d.get("verification"):
+            # The same measurement unverified: the fit's value and the model's own U.
+            item.update(own_error=v["fitted_value"] - truth[d["name"]],
+                        own_U=v["own_expanded_uncertainty"], k=v.get("coverage_factor"))
+        row["dimensions"][d["name"]] = item
     return row
 
 
@@ -117,6 +171,9 @@ def main():
     ap.add_argument("--xgauge", default=str(ROOT / "build" / "apps" / "xgauge" / "xgauge"))
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--stated", action="store_true")
+    ap.add_argument("--verified", action="store_true",
+                    help="verify each part and pattern on its master first (xgauge verify on lab2's "
+                         "master sets and certificate) and measure with that verification")
     ap.add_argument("--parts", nargs="*", default=["prism", "wedge", "bracket", "shaft"])
     ap.add_argument("--table", action="store_true")
     args = ap.parse_args()
@@ -125,7 +182,9 @@ def main():
         rows = {tuple(k.split("|")): v for k, v in json.loads(out_file.read_text()).items()}
         print(tabulate(rows))
         return 0
-    labs = sorted(p.parent for p in args.suite.rglob("lab2_truth.json"))
+    # Machine folders, linked ones too (a suite assembled from several).
+    labs = sorted(Path(d) for d, _, files in os.walk(args.suite, followlinks=True)
+                  if "lab2_truth.json" in files)
     if not labs:
         print(f"lab2_coverage: no machine folders in {args.suite}", file=sys.stderr)
         return 2
@@ -147,8 +206,20 @@ def main():
                 job_file = lab / "measured" / part / pattern
                 if not job_file.exists():
                     continue
+                machine, material = out / "machine.json", out / "calibration" / "material.json"
+                verification = None
+                if args.verified:
+                    verification, vrow = verify_master(args, lab, part, pattern, out / f"{part}_master",
+                                                       machine, material)
+                    if verification is None:
+                        rows[(name, part, pattern)] = {"rc": vrow["rc"] if "rc" in vrow else 1,
+                                                       "seconds": vrow.get("seconds", 0.0),
+                                                       "verify_failed": vrow.get("reason")}
+                        print(f"{name} {part} {pattern}: verification failed: {vrow.get('reason')}",
+                              flush=True)
+                        continue
                 row = measure_part(args, lab, job_file, out / part / pattern.replace(".json", ""),
-                                   out / "machine.json", out / "calibration" / "material.json")
+                                   machine, material, verification)
                 rows[(name, part, pattern)] = row
                 d = row.get("dimensions", {})
                 inside = sum(1 for v in d.values() if v["U"] is not None and abs(v["error"]) <= v["U"])

@@ -697,7 +697,7 @@ namespace {
 // without it says its U is unverified and gives no verdict (exit 2); with
 // another material the verification is refused, naming why.
 TEST_F(MeasureJob, AVerifiedMethodGivesVerdictsAnUnverifiedOneDoesNot) {
-  const std::string tolerance = R"("tolerances": {"size_y": {"lower": -1, "upper": 1}})";
+  const std::string tolerance = R"("tolerances": {"size_y": {"lower": -2, "upper": 2}})";
   nlohmann::json verify_job = {
       {"master",
        {{"certificate",
@@ -740,7 +740,17 @@ TEST_F(MeasureJob, AVerifiedMethodGivesVerdictsAnUnverifiedOneDoesNot) {
   const double u =
       std::sqrt(std::pow(y.at("u_cal").get<double>(), 2) + std::pow(y.at("u_p").get<double>(), 2) +
                 std::pow(y.at("u_b").get<double>(), 2) + std::pow(s.at("u_w").get<double>(), 2));
-  EXPECT_NEAR(d.at("expanded_uncertainty").get<double>(), 2.0 * u, 1e-12);
+  // Three measurements of the master: u_p and u_b known to 2 degrees of
+  // freedom, k Student's t at Welch-Satterthwaite's nu (above 2 when they
+  // dominate).
+  const double repeated =
+      std::pow(y.at("u_p").get<double>(), 2) + std::pow(y.at("u_b").get<double>(), 2);
+  EXPECT_NEAR(s.at("effective_degrees_of_freedom").get<double>(),
+              std::pow(u, 4) / (repeated * repeated / 2.0), 1e-9);
+  const double k = s.at("coverage_factor").get<double>();
+  EXPECT_GT(k, 2.0);
+  EXPECT_LE(k, 4.53);
+  EXPECT_NEAR(d.at("expanded_uncertainty").get<double>(), k * u, 1e-12);
 
   const CommandResult unverified =
       run("measure " + job("", ", " + tolerance) + " -o " + out("unverified") + " -q");

@@ -3,9 +3,12 @@
 #include "xgauge/core/error.h"
 
 #include <fmt/format.h>
+#include <boost/math/distributions/normal.hpp>
+#include <boost/math/distributions/students_t.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace xgauge {
 
@@ -156,15 +159,27 @@ Verification verifyOnMaster(const std::vector<MasterMeasurement>& measurements,
 }
 
 Substitution substitute(double measured, double own_combined, const VerifiedDimension& verified,
-                        double coverage_factor) {
+                        double normal_coverage_factor) {
   Substitution s;
   s.value = measured - verified.bias;
   s.u_w = std::sqrt(
       std::max(0.0, own_combined * own_combined - verified.own_master * verified.own_master));
-  s.combined = std::sqrt(verified.u_cal * verified.u_cal + verified.u_p * verified.u_p +
-                         verified.u_b * verified.u_b + s.u_w * s.u_w);
-  s.expanded = coverage_factor * s.combined;
+  const double repeated = verified.u_p * verified.u_p + verified.u_b * verified.u_b;
+  s.combined = std::sqrt(verified.u_cal * verified.u_cal + repeated + s.u_w * s.u_w);
+  const double u4 = s.combined * s.combined * s.combined * s.combined;
+  s.effective_dof = repeated > 0.0 && verified.measurements > 1
+                        ? u4 / (repeated * repeated / (verified.measurements - 1))
+                        : std::numeric_limits<double>::infinity();
+  s.coverage_factor = studentCoverageFactor(s.effective_dof, normal_coverage_factor);
+  s.expanded = s.coverage_factor * s.combined;
   return s;
+}
+
+double studentCoverageFactor(double nu, double k_normal) {
+  XG_CHECK(nu > 0.0 && k_normal > 0.0, "nu = {}, k = {}", nu, k_normal);
+  const double p = boost::math::cdf(boost::math::normal(), k_normal);
+  if (!std::isfinite(nu) || nu > 1e7) return k_normal;
+  return boost::math::quantile(boost::math::students_t(nu), p);
 }
 
 void checkVerificationConditions(const Verification& verification, const std::string& part_sha256,

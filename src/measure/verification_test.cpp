@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <string>
 
 namespace xgauge {
@@ -25,7 +26,12 @@ namespace {
 //   y' = 10.030 - 0.0135 = 10.0165
 //   u_w = sqrt(0.005^2 - 0.004^2) = 0.003
 //   u^2 = 4e-6 + 15e-6 + 3.75e-6 + 9e-6 = 31.75e-6;  u = 0.00563471
-//   U = 2 u = 0.01126943
+//   u_p and u_b known to n - 1 = 3 degrees of freedom (Welch-Satterthwaite):
+//   nu = (31.75e-6)^2 / ((15e-6 + 3.75e-6)^2 / 3) = 1008.0625 / 117.1875
+//      = 8.60213
+//   k = Student's t at 8.60213 degrees of freedom for p = Phi(2) = 0.97725
+//     = 2.33686 (scipy.stats.t.ppf(0.9772498680518208, 8.602133333))
+//   U = k u = 0.01316755
 std::vector<MasterMeasurement> fourMeasurements() {
   const double y[] = {10.012, 10.018, 10.009, 10.015}, own[] = {0.004, 0.004, 0.005, 0.003};
   const double magnification[] = {2.01, 2.03, 1.99, 2.00};
@@ -67,9 +73,30 @@ TEST(Verification, TheSubstitutionMatchesAWorkedExampleByHand) {
   EXPECT_NEAR(s.value, 10.0165, 1e-12);
   EXPECT_NEAR(s.u_w, 0.003, 1e-12);
   EXPECT_NEAR(s.combined, 0.0056347138, 1e-9);
-  EXPECT_NEAR(s.expanded, 0.0112694277, 1e-9);
+  EXPECT_NEAR(s.effective_dof, 8.6021333333, 1e-8);
+  EXPECT_NEAR(s.coverage_factor, 2.3368617277, 1e-8);
+  EXPECT_NEAR(s.expanded, 0.0131675470, 1e-9);
   // A workpiece the model explains better than the master adds no u_w.
   EXPECT_EQ(substitute(10.030, 0.003, d, 2.0).u_w, 0.0);
+}
+
+// Student's t against the GUM's Table G.2 (p = 95.45 %): nu = 2 gives
+// 4.53, nu = 10 gives 2.28, nu = 50 gives 2.05, and infinity 2.
+TEST(Verification, TheCoverageFactorFollowsTheDegreesOfFreedom) {
+  EXPECT_NEAR(studentCoverageFactor(2.0, 2.0), 4.53, 0.005);
+  EXPECT_NEAR(studentCoverageFactor(10.0, 2.0), 2.28, 0.005);
+  EXPECT_NEAR(studentCoverageFactor(50.0, 2.0), 2.05, 0.005);
+  EXPECT_EQ(studentCoverageFactor(std::numeric_limits<double>::infinity(), 2.0), 2.0);
+  // Three measurements of a master whose repeatability is all of u: k = 4.53.
+  VerifiedDimension d;
+  d.measurements = 3, d.u_p = 0.004, d.u_b = 0.004 / std::sqrt(3.0);
+  const Substitution s = substitute(1.0, 0.0, d, 2.0);
+  EXPECT_NEAR(s.effective_dof, 2.0, 1e-12);
+  EXPECT_NEAR(s.expanded / s.combined, 4.5265, 1e-4);
+  // A master measured identically every time: no repeatability to estimate,
+  // the normal k.
+  d.u_p = d.u_b = 0.0, d.u_cal = 0.002;
+  EXPECT_EQ(substitute(1.0, 0.0, d, 2.0).coverage_factor, 2.0);
 }
 
 TEST(Verification, TheFileReadsBackAsWritten) {

@@ -2,9 +2,11 @@
 
 #include "xgauge/core/error.h"
 
+#include <boost/math/distributions/chi_squared.hpp>
+#include <boost/math/distributions/normal.hpp>
+
 #include <algorithm>
 #include <cmath>
-#include <numbers>
 #include <numeric>
 
 namespace xgauge {
@@ -13,36 +15,6 @@ namespace {
 
 double mean(const std::vector<double>& v) {
   return std::accumulate(v.begin(), v.end(), 0.0) / static_cast<double>(v.size());
-}
-
-// Regularized lower incomplete gamma P(a, x): its series below a + 1, the
-// continued fraction of Q = 1 - P above (Numerical Recipes, 6.2).
-double lowerGammaRegularized(double a, double x) {
-  if (x <= 0) return 0.0;
-  const double log_prefix = a * std::log(x) - x - std::lgamma(a);
-  if (x < a + 1.0) {
-    double term = 1.0 / a, sum = term;
-    for (int n = 1; n < 10000 && std::abs(term) > 1e-17 * std::abs(sum); ++n) {
-      term *= x / (a + n);
-      sum += term;
-    }
-    return sum * std::exp(log_prefix);
-  }
-  constexpr double tiny = 1e-300;
-  double b = x + 1.0 - a, c = 1.0 / tiny, d = 1.0 / b, h = d;
-  for (int i = 1; i < 10000; ++i) {
-    const double an = -i * (i - a);
-    b += 2.0;
-    d = an * d + b;
-    if (std::abs(d) < tiny) d = tiny;
-    c = b + an / c;
-    if (std::abs(c) < tiny) c = tiny;
-    d = 1.0 / d;
-    const double step = d * c;
-    h *= step;
-    if (std::abs(step - 1.0) < 1e-16) break;
-  }
-  return 1.0 - std::exp(log_prefix) * h;
 }
 
 }  // namespace
@@ -207,54 +179,17 @@ Capability capability(const std::vector<double>& baseline, double lsl, double us
 
 double normalQuantile(double p) {
   XG_CHECK(p > 0.0 && p < 1.0, "p = {}", p);
-  // P. J. Acklam's coefficients.
-  static const double a[] = {-3.969683028665376e+01, 2.209460984245205e+02,  -2.759285104469687e+02,
-                             1.383577518672690e+02,  -3.066479806614716e+01, 2.506628277459239e+00};
-  static const double b[] = {-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
-                             6.680131188771972e+01, -1.328068155288572e+01};
-  static const double c[] = {-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e+00,
-                             -2.549732539343734e+00, 4.374664141464968e+00,  2.938163982698783e+00};
-  static const double d[] = {7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
-                             3.754408661907416e+00};
-  constexpr double low = 0.02425;
-  double x;
-  if (p < low) {
-    const double q = std::sqrt(-2 * std::log(p));
-    x = (((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) /
-        ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1);
-  } else if (p <= 1 - low) {
-    const double q = p - 0.5, r = q * q;
-    x = (((((a[0] * r + a[1]) * r + a[2]) * r + a[3]) * r + a[4]) * r + a[5]) * q /
-        (((((b[0] * r + b[1]) * r + b[2]) * r + b[3]) * r + b[4]) * r + 1);
-  } else {
-    const double q = std::sqrt(-2 * std::log(1 - p));
-    x = -(((((c[0] * q + c[1]) * q + c[2]) * q + c[3]) * q + c[4]) * q + c[5]) /
-        ((((d[0] * q + d[1]) * q + d[2]) * q + d[3]) * q + 1);
-  }
-  // One Halley step on the exact distribution function.
-  const double e = 0.5 * std::erfc(-x / std::sqrt(2.0)) - p;
-  const double u = e * std::sqrt(2 * std::numbers::pi) * std::exp(x * x / 2);
-  return x - u / (1 + x * u / 2);
+  return boost::math::quantile(boost::math::normal(), p);
 }
 
-double chiSquareCdf(double x, double nu) { return lowerGammaRegularized(nu / 2, x / 2); }
+double chiSquareCdf(double x, double nu) {
+  XG_CHECK(nu > 0.0, "nu = {}", nu);
+  return x <= 0.0 ? 0.0 : boost::math::cdf(boost::math::chi_squared(nu), x);
+}
 
 double chiSquareQuantile(double p, double nu) {
   XG_CHECK(p > 0.0 && p < 1.0 && nu > 0.0, "p = {}, nu = {}", p, nu);
-  const double z = normalQuantile(p);
-  const double h = 2.0 / (9.0 * nu);
-  double x = std::max(1e-8, nu * std::pow(std::max(1.0 - h + z * std::sqrt(h), 1e-3), 3));
-  for (int i = 0; i < 100; ++i) {
-    const double f = chiSquareCdf(x, nu) - p;
-    const double log_pdf =
-        (nu / 2 - 1) * std::log(x) - x / 2 - (nu / 2) * std::log(2.0) - std::lgamma(nu / 2);
-    const double step = f / std::exp(log_pdf);
-    double next = x - step;
-    if (next <= 0) next = x / 2;
-    if (std::abs(next - x) <= 1e-13 * x) return next;
-    x = next;
-  }
-  return x;
+  return boost::math::quantile(boost::math::chi_squared(nu), p);
 }
 
 }  // namespace xgauge

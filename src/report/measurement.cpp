@@ -16,6 +16,7 @@
 #include <tbb/parallel_invoke.h>
 
 #include <chrono>
+#include <cmath>
 #include <utility>
 
 namespace xgauge {
@@ -57,6 +58,10 @@ nlohmann::json dimensionJson(const ForwardModel& model, const MeasuredDimension&
         {"u_b", v->u_b},
         {"u_w", s->u_w},
         {"combined_standard_uncertainty", s->combined},
+        {"effective_degrees_of_freedom", std::isfinite(s->effective_dof)
+                                             ? nlohmann::json(s->effective_dof)
+                                             : nlohmann::json(nullptr)},
+        {"coverage_factor", s->coverage_factor},
         {"own_expanded_uncertainty", d.own_expanded_uncertainty
                                          ? nlohmann::json(*d.own_expanded_uncertainty)
                                          : nlohmann::json(nullptr)}};

@@ -17,8 +17,21 @@
 // combined standard uncertainty u_own then reports
 //
 //   y' = y - b
-//   U  = k sqrt(u_cal^2 + u_p^2 + u_b^2 + u_w^2),  k = 2
+//   u  = sqrt(u_cal^2 + u_p^2 + u_b^2 + u_w^2)
+//   U  = k u,  k = t_nu((1 + p) / 2)
 //   u_w^2 = max(0, u_own^2 - u_own,master^2)
+//
+// u_p and u_b come from the same n measurements, so u is known only to
+// n - 1 degrees of freedom where they dominate: k is Student's t quantile
+// at the effective degrees of freedom of Welch and Satterthwaite (GUM,
+// JCGM 100:2008, G.4) for the coverage probability p of the normal
+// k = 2 (95.45 %),
+//
+//   nu = u^4 / ((u_p^2 + u_b^2)^2 / (n - 1)),
+//
+// u_cal and u_w being taken as exactly known (infinite degrees of
+// freedom). Three measurements of the master where they dominate give
+// nu = 2 and k = 4.53; twenty give k = 2.14.
 //
 // u_w stands for the workpiece's own variation, what makes it differ from
 // the master in the method's eyes: u_own,master is the mean of the master's
@@ -110,10 +123,19 @@ struct Substitution {
   double value = 0.0;     // y' = y - b
   double expanded = 0.0;  // U
   double u_w = 0.0;
-  double combined = 0.0;  // U / k
+  double combined = 0.0;         // u = U / k
+  double effective_dof = 0.0;    // nu (infinite where u_p = 0)
+  double coverage_factor = 0.0;  // k
 };
+// `normal_coverage_factor` is k for infinite degrees of freedom (the
+// verification's; 2): it fixes the coverage probability p.
 Substitution substitute(double measured, double own_combined, const VerifiedDimension& verified,
-                        double coverage_factor);
+                        double normal_coverage_factor);
+
+// Student's t quantile k for nu degrees of freedom with the coverage
+// probability of the normal quantile k_normal: the coverage factor of a
+// standard uncertainty known to nu degrees of freedom (GUM G.3).
+double studentCoverageFactor(double nu, double k_normal);
 
 // Error (naming the verification file and the condition) unless a
 // measurement with these digests and magnifications lies within the

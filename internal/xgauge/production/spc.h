@@ -78,10 +78,8 @@ struct Capability {
 Capability capability(const std::vector<double>& baseline, double lsl, double usl,
                       double confidence = 0.95);
 
-// Quantiles: the standard normal's (Acklam's rational approximation,
-// relative error below 1.2e-9) and the chi-square's with nu degrees of
-// freedom (Wilson-Hilferty, refined by Newton steps on the exact
-// distribution function: good to 1e-9 for nu >= 1).
+// Quantiles of the standard normal and of the chi-square with nu degrees of
+// freedom, and the chi-square's distribution function (Boost.Math).
 double normalQuantile(double p);
 double chiSquareQuantile(double p, double nu);
 double chiSquareCdf(double x, double nu);

@@ -122,45 +122,65 @@ def measure_part(args, folder, job_file, out, machine, material, verification=No
     return row
 
 
+def _within(rows, err, unc):
+    """(inside, count, |errors|, per dimension) over measured runs' dimensions
+    that have both keys."""
+    inside = count = 0
+    errors, per_dim = [], defaultdict(lambda: [0, 0])
+    for part, r in rows:
+        if r.get("status") != "measured":
+            continue
+        for name, d in r["dimensions"].items():
+            if d.get(unc) is None or d.get(err) is None:
+                continue
+            ok = abs(d[err]) <= d[unc]
+            count += 1
+            inside += ok
+            errors.append(abs(d[err]))
+            per_dim[f"{part}.{name}"][0] += ok
+            per_dim[f"{part}.{name}"][1] += 1
+    return inside, count, errors, per_dim
+
+
 def tabulate(rows):
-    lines = ["| part | pattern | runs measured | dimensions within U | coverage | mean abs error mm |",
-             "|---|---|---|---|---|---|"]
+    """The table per part and pattern; with --verified runs, the same
+    measurements unverified (the fit's value, the model's own U) beside."""
+    verified = any("own_U" in d for r in rows.values() for d in r.get("dimensions", {}).values())
+    head = "| part | pattern | runs measured | dimensions within U | coverage | mean abs error mm |"
+    if verified:
+        head += " unverified: within own U | coverage | mean abs error mm |"
+    lines = [head, "|" + "---|" * (head.count("|") - 1)]
     by = defaultdict(list)
     for (machine, part, pattern), row in rows.items():
-        by[(part, pattern)].append(row)
-    pooled, per_dim = [0, 0], defaultdict(lambda: [0, 0])
-    measured = total = 0
-    for (part, pattern), rs in sorted(by.items()):
-        inside = count = 0
-        errors = []
-        ok = 0
-        for r in rs:
-            total += 1
-            if r.get("status") != "measured":
-                continue
-            ok += 1
-            measured += 1
-            for name, d in r["dimensions"].items():
-                if d["U"] is None:
-                    continue
-                count += 1
-                inside += abs(d["error"]) <= d["U"]
-                errors.append(abs(d["error"]))
-                per_dim[f"{part}.{name}"][0] += abs(d["error"]) <= d["U"]
-                per_dim[f"{part}.{name}"][1] += 1
-        pooled[0] += inside
-        pooled[1] += count
+        by[(part, pattern)].append((part, row))
+
+    def cells(rs, err, unc):
+        inside, count, errors, _ = _within(rs, err, unc)
         cov = f"{100 * inside / count:.0f} %" if count else "–"
         mean = f"{sum(errors) / len(errors):.4f}" if errors else "–"
-        lines.append(f"| {part} | {pattern.replace('job_', '').replace('.json', '')} | {ok} of {len(rs)} "
-                     f"| {inside} of {count} | {cov} | {mean} |")
+        return f" {inside} of {count} | {cov} | {mean} |"
+
+    for (part, pattern), rs in sorted(by.items()):
+        ok = sum(r.get("status") == "measured" for _, r in rs)
+        line = (f"| {part} | {pattern.replace('job_', '').replace('.json', '')} | {ok} of {len(rs)} |"
+                + cells(rs, "error", "U"))
+        if verified:
+            line += cells(rs, "own_error", "own_U")
+        lines.append(line)
     lines.append("")
-    if pooled[1]:
-        lines.append(f"Pooled: {pooled[0]} of {pooled[1]} dimensions within U "
-                     f"({100 * pooled[0] / pooled[1]:.1f} %); {measured} of {total} runs measured.")
-    low = [f"{k} {100 * v[0] / v[1]:.0f} % ({v[0]}/{v[1]})" for k, v in sorted(per_dim.items())
-           if v[1] and v[0] / v[1] < 0.8]
-    lines.append("Dimensions below 80 %: " + (", ".join(low) if low else "none"))
+    everything = [(k[1], r) for k, r in rows.items()]
+    measured = sum(r.get("status") == "measured" for _, r in everything)
+    for label, err, unc in (("", "error", "U"), ("Unverified (the same runs, the model's own U): ",
+                                                 "own_error", "own_U")):
+        if not label or verified:
+            inside, count, _, per_dim = _within(everything, err, unc)
+            if not count:
+                continue
+            low = [f"{k} {100 * v[0] / v[1]:.0f} % ({v[0]}/{v[1]})" for k, v in sorted(per_dim.items())
+                   if v[1] and v[0] / v[1] < 0.8]
+            lines.append(f"{label or 'Pooled: '}{inside} of {count} dimensions within U "
+                         f"({100 * inside / count:.1f} %); {measured} of {len(everything)} runs measured. "
+                         "Dimensions below 80 %: " + (", ".join(low) if low else "none") + ".")
     return "\n".join(lines)
 
 

@@ -50,7 +50,7 @@
 //   loss               optional, "l1" (thesis eq. 3.13, default) or "l2"
 //   acceptance         optional: when a fit is not a measurement (measure/self_check.h,
 //                      AcceptanceRule): {"max_misfit_ratio": 1 .. 1000, default 4;
-//                      "max_region_share": 0 .. 1, default 0.05; "fail_at_bound": bool,
+//                      "max_region_share": 0 .. 1, default 0.10; "fail_at_bound": bool,
 //                      default true; "retries": 0 .. 10, default 2}
 //   verification       optional: a verification file (`xgauge verify`,
 //                      measure/verification.h): free dimensions it verified are

@@ -179,6 +179,83 @@ Image ScatterModel::spreadAround(const Image& image, double pitch_mm, float outs
   return total;
 }
 
+HaloField ScatterModel::haloField(const OpenBeamField& field, int width, int height,
+                                  double pitch_mm, double scale) const {
+  HaloField out;
+  if (field.uniform()) return out;
+  out.open = field.sampled(width, height, scale);
+  for (const GaussianTerm& term : components()) {
+    if (term.fraction <= 0.0) continue;
+    Image halo = border == HaloBorder::kOpen
+                     ? field.blurredOverThePlane(width, height, scale, term.sigma)
+                     : gaussianBlur(out.open, term.sigma / pitch_mm, BlurBorder::kMirror);
+    addWeighted(out.open_halo, std::move(halo), static_cast<float>(term.fraction));
+  }
+  out.flat = Image(width, height);
+  const auto o = out.open.pixels(), k = out.open_halo.pixels();
+  auto f = out.flat.pixels();
+  for (size_t i = 0; i < f.size(); ++i)
+    f[i] = static_cast<float>(mix(1.0, static_cast<double>(k[i]) / static_cast<double>(o[i])));
+  return out;
+}
+
+namespace {
+
+// (I - outside) O: what the halo spreads besides the open beam's own.
+Image timesField(const Image& image, float outside, const HaloField& field) {
+  Image out = image;
+  auto v = out.pixels();
+  const auto o = field.open.pixels();
+  for (size_t i = 0; i < v.size(); ++i) v[i] = (v[i] - outside) * o[i];
+  return out;
+}
+
+// (total + outside K * O) / O, in place.
+void intoField(Image& total, float outside, const HaloField& field) {
+  auto t = total.pixels();
+  const auto o = field.open.pixels(), k = field.open_halo.pixels();
+  for (size_t i = 0; i < t.size(); ++i) t[i] = (t[i] + outside * k[i]) / o[i];
+}
+
+}  // namespace
+
+Image ScatterModel::spreadIn(const Image& image, double pitch_mm, float outside,
+                             const HaloField& field) const {
+  if (field.uniform()) return spread(image, pitch_mm, outside);
+  const BlurBorder blur_border =
+      border == HaloBorder::kOpen ? BlurBorder::kZero : BlurBorder::kMirror;
+  const Image shifted = timesField(image, outside, field);
+  Image total;
+  for (const GaussianTerm& term : components()) {
+    if (term.fraction <= 0.0) continue;
+    addWeighted(total, gaussianBlur(shifted, term.sigma / pitch_mm, blur_border),
+                static_cast<float>(term.fraction));
+  }
+  intoField(total, outside, field);
+  return total;
+}
+
+Image ScatterModel::spreadAroundIn(const Image& image, double pitch_mm, float outside,
+                                   const HaloField& field, double sigma_shrink_px2) const {
+  if (field.uniform()) return spreadAround(image, pitch_mm, outside, sigma_shrink_px2);
+  const BlurBorder blur_border =
+      border == HaloBorder::kOpen ? BlurBorder::kZero : BlurBorder::kMirror;
+  const Image shifted = timesField(image, outside, field);
+  Image total;
+  for (const GaussianTerm& term : components()) {
+    if (term.fraction <= 0.0) continue;
+    const double sigma = term.sigma / pitch_mm;
+    addWeighted(
+        total,
+        gaussianBlurAround(
+            shifted, std::sqrt(std::max(sigma * sigma - sigma_shrink_px2, 0.25 * sigma * sigma)),
+            0.0f, blur_border),
+        static_cast<float>(term.fraction));
+  }
+  intoField(total, outside, field);
+  return total;
+}
+
 Image ScatterModel::apply(Image image, double pitch_mm, float outside) const {
   if (isMirroredGaussian()) return scatterBlur(std::move(image), weight, sigmaPx(pitch_mm));
   if (!(weight >= 0.0 && weight <= 1.0)) fail("scatter weight must be in [0, 1], got {}", weight);
@@ -210,6 +287,37 @@ Image ScatterModel::remove(const Image& normalized, double pitch_mm, const Pixel
     for (size_t i = 0; i < out.size(); ++i)
       out[i] = static_cast<float>(
           unmix(static_cast<double>(n[i]), static_cast<double>(g[i]), open));
+  }
+  return estimate;
+}
+
+Image ScatterModel::remove(const Image& normalized, double pitch_mm, const PixelRect& white,
+                           const OpenBeamField& field, int iterations) const {
+  if (field.uniform() || weight == 0.0) return remove(normalized, pitch_mm, white, iterations);
+  if (!(weight >= 0.0 && weight <= 0.9)) fail("scatter weight must be in [0, 0.9], got {}", weight);
+  if (white.empty() || !normalized.rect().contains(white))
+    fail("white region {} lies outside the {}x{} image", toString(white), normalized.width(),
+         normalized.height());
+  const HaloField halo_field = haloField(field, normalized.width(), normalized.height(), pitch_mm);
+  const auto f = halo_field.flat.pixels();
+  Image estimate = normalized;
+  for (int iteration = 0; iteration < iterations; ++iteration) {
+    const Image spreaded = spreadIn(estimate, pitch_mm, 1.0f, halo_field);
+    const auto g = spreaded.pixels();
+    // The white region's level: the open beam (I = 1) with the halo there.
+    double open = 0.0;
+    for (int y = white.y; y < white.bottom(); ++y)
+      for (int x = white.x; x < white.right(); ++x) {
+        const auto i = static_cast<size_t>(y) * static_cast<size_t>(normalized.width()) +
+                       static_cast<size_t>(x);
+        open += mix(1.0, static_cast<double>(g[i])) / static_cast<double>(f[i]);
+      }
+    open /= static_cast<double>(white.area());
+    const auto n = normalized.pixels();
+    auto out = estimate.pixels();
+    for (size_t i = 0; i < out.size(); ++i)
+      out[i] = static_cast<float>(unmix(static_cast<double>(n[i]), static_cast<double>(g[i]),
+                                        open * static_cast<double>(f[i])));
   }
   return estimate;
 }

@@ -3,6 +3,7 @@
 #include "xgauge/image/scatter.h"
 
 #include "xgauge/core/config.h"
+#include "xgauge/image/blur.h"
 #include "xgauge/image/stats.h"
 
 #include <gtest/gtest.h>
@@ -127,6 +128,87 @@ TEST(HaloBorder, OpenBorderIsTheAnalyticHaloOfADarkRectangle) {
     const Image mirrored = mirror.spread(image, 0.1, 1.0f);
     EXPECT_GT(static_cast<double>(spread(0, height / 2) - mirrored(0, height / 2)), 0.1);
   }
+}
+
+// A transmission image under a strongly non-uniform open beam (cos^3 at a
+// source 25 mm away, a heel), its halo added before the flat-field, by
+// direct blurs of a canvas that holds the panel and the open beam around
+// it; the flat frame has its halo too. The removal in the open beam's field
+// gives the transmission back; the uniform removal does not.
+TEST(HaloBorder, OpenBorderIsRemovedInTheOpenBeamsField) {
+  const int width = 160, height = 120, margin = 60;  // the taps reach 54 px
+  const OpenBeamField field({25.0, 70.0, 65.0, 0.1, 0.1}, 0.01, -0.02);
+  Image transmission(width, height, 1.0f);
+  for (int y = 30; y < 90; ++y)
+    for (int x = 20; x < 70; ++x) transmission(x, y) = 0.2f + 0.004f * static_cast<float>(x - 20);
+  ScatterModel halo;
+  halo.weight = 0.15, halo.sigma_mm = 1.2, halo.border = HaloBorder::kOpen;
+  // What the detector records of the signal T O, and of the flat O.
+  auto recorded = [&](bool flat) {
+    Image canvas(width + 2 * margin, height + 2 * margin);
+    for (int j = 0; j < canvas.height(); ++j)
+      for (int i = 0; i < canvas.width(); ++i) {
+        const int x = i - margin, y = j - margin;
+        const bool inside = x >= 0 && x < width && y >= 0 && y < height;
+        canvas(i, j) =
+            static_cast<float>(field.at(x + 0.5, y + 0.5) *
+                               (inside && !flat ? static_cast<double>(transmission(x, y)) : 1.0));
+      }
+    return halo.apply(std::move(canvas), 0.1, 0.0f).crop({margin, margin, width, height});
+  };
+  const Image raw = recorded(false), flat = recorded(true);
+  const PixelRect white{120, 5, 30, 20};
+  Image normalized = raw;
+  for (size_t i = 0; i < normalized.size(); ++i) normalized.pixels()[i] /= flat.pixels()[i];
+  const auto level = static_cast<float>(meanOf(normalized, white));
+  for (float& v : normalized.pixels()) v /= level;
+  auto worst = [&](const Image& removed) {
+    double out = 0.0;
+    for (size_t i = 0; i < removed.size(); ++i)
+      out = std::max(out, std::abs(static_cast<double>(removed.pixels()[i]) -
+                                   static_cast<double>(transmission.pixels()[i])));
+    return out;
+  };
+  EXPECT_LT(worst(halo.remove(normalized, 0.1, white, field)), 2e-6);
+  EXPECT_GT(worst(halo.remove(normalized, 0.1, white)), 1e-3);
+  // The forward formula the removal inverts: mix(T, H(T)) / mix(1, H(1)).
+  const HaloField in_field = halo.haloField(field, width, height, 0.1);
+  const Image h = halo.spreadIn(transmission, 0.1, 1.0f, in_field);
+  double forward = 0.0;
+  for (size_t i = 0; i < h.size(); ++i) {
+    const double t = static_cast<double>(transmission.pixels()[i]);
+    const double ratio =
+        static_cast<double>(raw.pixels()[i]) / static_cast<double>(flat.pixels()[i]);
+    forward = std::max(forward, std::abs(halo.mix(t, static_cast<double>(h.pixels()[i])) /
+                                             static_cast<double>(in_field.flat.pixels()[i]) -
+                                         ratio));
+  }
+  EXPECT_LT(forward, 1e-6);
+}
+
+// A flat frame shaped cos^3 (1 + a x + b y) with dead and hot pixels: the
+// fit gives a and b back.
+TEST(OpenBeamField, FitsTheFlatsHeel) {
+  const OpenBeamGeometry geometry{400.0, 240.0, 200.0, 0.2, 0.2};
+  const OpenBeamField truth(geometry, 2e-4, -1.5e-4);
+  Image flat = truth.sampled(512, 384, 1.0);
+  for (float& v : flat.pixels()) v *= 3000.0f;
+  for (int k = 0; k < 300; ++k) flat((k * 37) % 512, (k * 91) % 384) = k % 2 ? 0.0f : 20000.0f;
+  const OpenBeamField fitted = OpenBeamField::fit(geometry, flat);
+  EXPECT_NEAR(fitted.heelUPerMm(), 2e-4, 1e-7);
+  EXPECT_NEAR(fitted.heelVPerMm(), -1.5e-4, 1e-7);
+  EXPECT_NEAR(fitted.at(10.0, 300.0), truth.at(10.0, 300.0), 1e-6);
+  EXPECT_TRUE(OpenBeamField().uniform());
+  EXPECT_EQ(OpenBeamField().at(3.0, 4.0), 1.0);
+  // The field over the plane for a narrow kernel: the blur of the field
+  // continued beyond the image (the centre's, where no border is near, is
+  // the panel's own blur).
+  const Image blurred = truth.blurredOverThePlane(512, 384, 1.0, 2.0);
+  EXPECT_NEAR(static_cast<double>(blurred(256, 192)),
+              static_cast<double>(gaussianBlur(truth.sampled(512, 384, 1.0), 10.0)(256, 192)),
+              1e-6);
+  EXPECT_LT(static_cast<double>(blurred(0, 0)),
+            static_cast<double>(truth.sampled(1, 1, 1.0)(0, 0)));
 }
 
 TEST(HaloBorder, GaussExpMatchesTheClosedFormKernelSummed) {

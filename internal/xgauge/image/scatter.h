@@ -21,6 +21,7 @@
 
 #include "xgauge/core/config.h"
 #include "xgauge/image/image.h"
+#include "xgauge/image/open_beam.h"
 
 #include <vector>
 
@@ -50,6 +51,17 @@ struct GaussianTerm {
 inline constexpr GaussianTerm kExponentialTailMixture[] = {
     {0.003079883151, 0.1551531672}, {0.0251902533, 0.3618463035}, {0.1162606368, 0.6837757676},
     {0.3198362559, 1.166504387},    {0.4108837975, 1.872753185},  {0.1247491734, 2.923084313}};
+
+// The open beam's field at the pixels of an image of one size and its halo
+// there (ScatterModel::haloField), shared by the many spreads of a fit.
+struct HaloField {
+  Image open;       // O; empty: a uniform field
+  Image open_halo;  // K * O: O over the plane (open border) or mirrored
+  // mix(1, K * O / O): the flat frame's own halo relative to O, by which a
+  // flat-field division divides.
+  Image flat;
+  bool uniform() const { return open.empty(); }
+};
 
 struct ScatterModel {
   double weight = 0.0;    // w in [0, 0.9]; 0 = no scatter
@@ -110,6 +122,23 @@ struct ScatterModel {
   Image spreadAround(const Image& image, double pitch_mm, float outside,
                      double sigma_shrink_px2 = 0.0) const;
 
+  // The halo in the open beam's field (image/open_beam.h; decision 0041):
+  //   H(I) = K * (I O) / O,
+  // the world beyond the panel `outside` times O (open border) or I O
+  // mirrored at the panel's edges, for an image of pixels of `pitch_mm`,
+  // each `scale` full-size pixels a side. A flat-field-corrected radiograph
+  // of transmission T then reads mix(T, H(T)) / mix(1, H(1)) (the flat has
+  // its halo too), up to the white region's normalization. Computed as
+  // (K * ((I - outside) O) + outside K * O) / O. With a uniform field:
+  // spread() (the field's K * O is 1).
+  HaloField haloField(const OpenBeamField& field, int width, int height, double pitch_mm,
+                      double scale = 1.0) const;
+  Image spreadIn(const Image& image, double pitch_mm, float outside, const HaloField& field) const;
+  // The same for an image that equals `outside` away from a feature, as
+  // spreadAround (the forward model's coarse renders).
+  Image spreadAroundIn(const Image& image, double pitch_mm, float outside, const HaloField& field,
+                       double sigma_shrink_px2 = 0.0) const;
+
   // The forward formula at one pixel: intensity I and its blur G(I) there.
   double mix(double intensity, double blurred) const {
     return (1.0 - weight) * intensity + weight * blurred;
@@ -138,6 +167,13 @@ struct ScatterModel {
   // outside the image.
   Image remove(const Image& normalized, double pitch_mm, const PixelRect& white,
                int iterations = 12) const;
+  // The same in the open beam's `field` (decision 0041): the fixed point
+  //   I <- (n r F - w H(I)) / (1 - w),
+  // H = spreadIn, F = mix(1, H(1)) the flat's own halo, r the white
+  // region's mean of mix(1, H(I)) / F (its normalization). A uniform field:
+  // remove() above, bit for bit.
+  Image remove(const Image& normalized, double pitch_mm, const PixelRect& white,
+               const OpenBeamField& field, int iterations = 12) const;
 };
 
 }  // namespace xgauge

@@ -31,9 +31,44 @@ std::vector<double> columnAttenuation(const Image& n) {
   return out;
 }
 
+// The open beam's field where an image's halo is taken (decision 0041): the
+// field, the image's pixel pitch and full-size pixels per pixel.
+struct InField {
+  const OpenBeamField* field = nullptr;
+  double pitch_mm = 1.0;
+  double scale = 1.0;
+};
+
+// The halo of one width in the field at an image's pixels (uniform: empty).
+struct WidthField {
+  ScatterModel kernel;  // the Gaussian of that width and border
+  double pitch_mm = 1.0;
+  HaloField halo;
+  Image excess;  // K * O / O - 1: the flat frame's own halo beyond O's
+};
+
+WidthField widthField(const InField& in, const Image& like, double sigma_px, HaloBorder border) {
+  WidthField out;
+  out.kernel.weight = 0.5, out.kernel.sigma_mm = sigma_px * in.pitch_mm, out.kernel.border = border;
+  out.pitch_mm = in.pitch_mm;
+  if (!in.field || in.field->uniform()) return out;
+  out.halo = out.kernel.haloField(*in.field, like.width(), like.height(), in.pitch_mm, in.scale);
+  out.excess = out.halo.open;
+  for (size_t i = 0; i < out.excess.size(); ++i)
+    out.excess.pixels()[i] = out.halo.open_halo.pixels()[i] / out.halo.open.pixels()[i] - 1.0f;
+  return out;
+}
+
 // K * P for the halo's width and border: mirrored at the panel's edges, or
-// with open beam (a primary of 1) beyond them.
-Image haloBlur(const Image& primary, double sigma_px, HaloBorder border) {
+// with open beam (a primary of 1) beyond them. In a non-uniform field
+// K * (P O) / O less the flat's own excess (`wf.excess`), which is 1 in the
+// open beam as the uniform field's.
+Image haloBlur(const Image& primary, double sigma_px, HaloBorder border, const WidthField& wf) {
+  if (!wf.halo.uniform()) {
+    Image out = wf.kernel.spreadIn(primary, wf.pitch_mm, 1.0f, wf.halo);
+    for (size_t i = 0; i < out.size(); ++i) out.pixels()[i] -= wf.excess.pixels()[i];
+    return out;
+  }
   if (border == HaloBorder::kMirror) return gaussianBlur(primary, sigma_px);
   Image shifted = primary;
   for (float& v : shifted.pixels()) v -= 1.0f;
@@ -43,24 +78,31 @@ Image haloBlur(const Image& primary, double sigma_px, HaloBorder border) {
 }
 
 // P = (n - b G(P) - c A) / a: one step of the fixed point, which contracts by
-// about b / a = w / (1 - w) per step.
+// about b / a = w / (1 - w) per step. In a non-uniform field the flat
+// divided by its own halo, mix(1, 1 + e): P = ((n - c A) (1 + w e) - b (G + e)) / a.
 void primaryStep(const Image& n, const std::vector<double>& attenuation, const Coefficients& k,
-                 const Image& blurred, Image& primary) {
+                 const Image& blurred, const WidthField& wf, Image& primary) {
+  const bool field = !wf.halo.uniform();
+  const double w = k.b / (k.a + k.b);
   for (int y = 0; y < n.height(); ++y)
-    for (int x = 0; x < n.width(); ++x)
+    for (int x = 0; x < n.width(); ++x) {
+      const double e = field ? at(wf.excess, x, y) : 0.0;
       primary(x, y) = static_cast<float>(
-          (at(n, x, y) - k.b * at(blurred, x, y) - k.c * attenuation[static_cast<size_t>(x)]) /
+          ((at(n, x, y) - k.c * attenuation[static_cast<size_t>(x)]) * (1.0 + w * e) -
+           k.b * (at(blurred, x, y) + e)) /
           k.a);
+    }
 }
 
 // Enough steps to leave about 1e-5 of the scatter for w up to 0.25.
 constexpr int kFixedPointSteps = 9;
 
 Image solvePrimary(const Image& n, const std::vector<double>& attenuation, const Coefficients& k,
-                   double sigma_px, HaloBorder border) {
+                   double sigma_px, HaloBorder border, const InField& in) {
   Image primary = n;
+  const WidthField wf = widthField(in, n, sigma_px, border);
   for (int step = 0; step < kFixedPointSteps; ++step)
-    primaryStep(n, attenuation, k, haloBlur(primary, sigma_px, border), primary);
+    primaryStep(n, attenuation, k, haloBlur(primary, sigma_px, border, wf), wf, primary);
   return primary;
 }
 
@@ -114,15 +156,17 @@ struct WidthFit {
 constexpr int kCorrelationBlock = 16;
 
 WidthFit fitAtWidth(const Image& n, const std::vector<double>& attenuation,
-                    const std::vector<int>& open, double sigma_px, HaloBorder border) {
+                    const std::vector<int>& open, double sigma_px, HaloBorder border,
+                    const InField& in) {
   WidthFit out;
+  const WidthField wf = widthField(in, n, sigma_px, border);
   out.sigma_px = sigma_px;
   out.border = border;
   Image primary = n;
   const auto values = n.pixels();
   Eigen::Matrix3d normal;
   for (int step = 0; step < kFixedPointSteps; ++step) {
-    const Image blurred = haloBlur(primary, sigma_px, border);
+    const Image blurred = haloBlur(primary, sigma_px, border, wf);
     const auto g = blurred.pixels();
     normal.setZero();
     Eigen::Vector3d right = Eigen::Vector3d::Zero();
@@ -162,7 +206,7 @@ WidthFit fitAtWidth(const Image& n, const std::vector<double>& attenuation,
       out.covariance = out.rms * out.rms * normal.completeOrthogonalDecomposition().pseudoInverse();
       return out;
     }
-    primaryStep(n, attenuation, out.k, blurred, primary);
+    primaryStep(n, attenuation, out.k, blurred, wf, primary);
   }
   out.rms = std::numeric_limits<double>::infinity();
   return out;
@@ -361,8 +405,9 @@ void noMeasurableHalo(const WidthFit& best, const std::vector<AllowedWeights>& a
   out.rms = best.rms;
   out.unseen_change = effect / kProfileSigmas;
   // Without a halo G(P) is 1 in the open beam: a + b is its level.
-  out.primary = solvePrimary(normalized, columnAttenuation(normalized),
-                             {best.k.a + best.k.b, 0.0, best.k.c}, 1.0, HaloBorder::kMirror);
+  out.primary =
+      solvePrimary(normalized, columnAttenuation(normalized), {best.k.a + best.k.b, 0.0, best.k.c},
+                   1.0, HaloBorder::kMirror, InField{});
 }
 
 // A scatter removed that was not there leaves the darkest paths below
@@ -554,8 +599,8 @@ void searchWidth(const FitAtBorder& fitAtBorder, const Image& n, const std::vect
   out.column_darkening = -best.k.c / (best.k.a + best.k.b);
   out.open_level = 1.0 / (best.k.a + best.k.b);
   out.rms = best.rms;
-  out.primary =
-      solvePrimary(normalized, columnAttenuation(normalized), best.k, sigma_mm / pitch_mm, border);
+  out.primary = solvePrimary(normalized, columnAttenuation(normalized), best.k, sigma_mm / pitch_mm,
+                             border, InField{&options.field, pitch_mm, 1.0});
   checkPrimaryNotNegative(out.primary, weight, sigma_mm, name);
 }
 
@@ -568,7 +613,9 @@ void fitOpenBeam(const Image& n, const std::vector<int>& open, const Image& norm
   const std::vector<double> attenuation = columnAttenuation(n);
   searchWidth(
       [&](double sigma, HaloBorder border) {
-        return fitAtWidth(n, attenuation, open, sigma, border);
+        return fitAtWidth(
+            n, attenuation, open, sigma, border,
+            InField{&options.field, pitch_mm * out.binning, static_cast<double>(out.binning)});
       },
       n, open, normalized, pitch_mm, name, options, out);
 }
@@ -580,13 +627,14 @@ Image HaloFit::primaryWith(const Image& normalized, double pitch_mm, double weig
   const double c = -column_darkening / open_level;
   return solvePrimary(normalized, columnAttenuation(normalized),
                       {(1.0 - weight) / open_level, weight / open_level, c}, sigma / pitch_mm,
-                      scatter.border);
+                      scatter.border, InField{&field, pitch_mm, 1.0});
 }
 
 HaloFit fitScatterHalo(const Image& normalized, double pitch_mm, const std::string& name,
                        const HaloOptions& options) {
   if (!(pitch_mm > 0.0)) fail("{}: the pixel pitch must be positive, got {}", name, pitch_mm);
   HaloFit out;
+  out.field = options.field;
   Image n = normalized;
   while (std::max(n.width(), n.height()) > options.max_side) n = downsample2x(n), out.binning *= 2;
 
@@ -611,6 +659,7 @@ HaloFit fitScatterWithPaths(const Image& normalized, const Image& path_mm, doubl
                             const std::string& name, const HaloOptions& options) {
   if (!(pitch_mm > 0.0)) fail("{}: the pixel pitch must be positive, got {}", name, pitch_mm);
   HaloFit out;
+  out.field = options.field;
   Image n = normalized;
   while (n.width() > path_mm.width() && n.width() > 1) n = downsample2x(n), out.binning *= 2;
   if (n.width() != path_mm.width() || n.height() != path_mm.height())

@@ -248,8 +248,8 @@ RegisteredTable registeredTable(ForwardModel& model, const std::vector<double>& 
         if (!smooth) continue;
         double intensity = static_cast<double>(measured(roi.x + x, roi.y + y));
         if (spread) {
-          const double g = spread->at(roi.x + x + 0.5, roi.y + y + 0.5);
-          intensity = scatter.unmix(intensity, g, spread->open);
+          const ScatterEstimate::Tap tap = spread->tap(roi.x + x + 0.5, roi.y + y + 0.5);
+          intensity = scatter.unmix(intensity, spread->at(tap), spread->openAt(tap));
         }
         pairs.push_back({p(x, y), intensity});
       }

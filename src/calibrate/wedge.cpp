@@ -305,7 +305,7 @@ void rampInfluences(const WedgeCalibrationJob& job, const Machine& geometry,
       } else {
         ScatterModel moved = scatter;
         moved.weight = weight, moved.sigma_mm = sigma_mm;
-        removed = moved.remove(normalized, machine.pitch_u_mm, spec.white_region);
+        removed = moved.remove(normalized, machine.pitch_u_mm, spec.white_region, out.open_beam);
       }
       return out.turned ? transposed(removed) : removed;
     };
@@ -349,6 +349,8 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   std::optional<Image> dark, flat;
   if (!spec.dark.empty())
     dark = readRadiograph(spec.dark).image, flat = readRadiograph(spec.flat).image;
+  out.open_beam = OpenBeamField::fromFrames(machine.openBeamGeometry(), dark ? &*dark : nullptr,
+                                            flat ? &*flat : nullptr);
   Image raw = readRadiograph(spec.image).image;
   if (raw.width() != machine.columns || raw.height() != machine.rows)
     fail("{} is {}x{} pixels but the machine's detector is {}x{}", name, raw.width(), raw.height(),
@@ -383,7 +385,9 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   if (job.estimate_scatter) {
     out.step = "estimate the scatter";
     try {
-      found = fitScatterHalo(normalized, machine.pitch_u_mm, name);
+      HaloOptions options;
+      options.field = out.open_beam;
+      found = fitScatterHalo(normalized, machine.pitch_u_mm, name, options);
     } catch (const Error& e) {
       if (!job.model) {
         // A radiograph without a wedge says so rather than that it has no
@@ -415,7 +419,7 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   } else {
     out.scatter = job.scatter;
     if (job.scatter.enabled())
-      image = job.scatter.remove(image, machine.pitch_u_mm, spec.white_region);
+      image = job.scatter.remove(image, machine.pitch_u_mm, spec.white_region, out.open_beam);
   }
   out.normalized = image;
   if (job.model) {

@@ -144,7 +144,8 @@ void knownWedgeInfluences(const WedgeCalibrationJob& job, const PartCalibrationJ
       if (out.halo) return out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
       ScatterModel moved = scatter;
       moved.weight = weight, moved.sigma_mm = sigma_mm;
-      return moved.remove(normalized, machine.pitch_u_mm, job.radiograph.white_region);
+      return moved.remove(normalized, machine.pitch_u_mm, job.radiograph.white_region,
+                          out.open_beam);
     };
     propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
               knownWedgeInputs(
@@ -208,7 +209,8 @@ void calibrateKnownWedge(const WedgeCalibrationJob& job, const Image& normalized
       // the box of the radiograph's sharp edges.
       part.step = "the scatter around the posed wedge";
       const PreparedRadiograph& prepared = *part_job->inputs->radiographs.front();
-      const HaloOptions options;
+      HaloOptions options;
+      options.field = out.open_beam;
       size_t level = 0;
       while (level + 1 < prepared.levels.size() &&
              std::max(prepared.levels[level].width(), prepared.levels[level].height()) >

@@ -134,11 +134,7 @@ Characterization characterize(const CharacterizeJob& job, const std::function<vo
     EdgeHaloOptions options;
     options.crosstalk = out.crosstalk ? out.crosstalk->value : 0.0;
     options.max_sigma_fraction = job.max_sigma_fraction;
-    Image field = flat;
-    for (size_t i = 0; i < field.size(); ++i) field.pixels()[i] -= dark.pixels()[i];
-    repairBadPixels(field, bad);
-    options.open_field = &field;
-    options.source_detector_distance_mm = machine.source_detector_distance_mm;
+    options.field = OpenBeamField::fromFrames(machine.openBeamGeometry(), &dark, &flat);
     out.halo = fitEdgeHalo(corrected(readInput(*job.edge, machine, out), dark, flat, bad),
                            machine.pitch_u_mm, options);
     advance();

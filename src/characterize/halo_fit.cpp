@@ -25,9 +25,6 @@ namespace {
 // 1 / variance per bin (0: left out).
 struct EdgeBins {
   Image data, open, weight;
-  // The open field O (heel, cos^3 and the smooth gain: the flat's shape,
-  // mean 1): the halo acts on O T, the flat divides by O.
-  Image field;
   double pitch_mm = 0.0;
   int binning = 1;
   int count = 0;  // bins with weight > 0
@@ -49,7 +46,7 @@ double pixelVariance(const Image& c, const ImageT<uint8_t>& mask, uint8_t level)
   return 0.5 * *mid / 0.4549364;
 }
 
-EdgeBins binEdgeShot(const Image& c, double pitch_mm, const Image* open_field) {
+EdgeBins binEdgeShot(const Image& c, double pitch_mm) {
   // Open where above half the open level: behind the plate only the halo
   // (w <= 0.9 of a level far below 1 away from the edge) remains.
   ImageT<uint8_t> mask(c.width(), c.height());
@@ -73,26 +70,15 @@ EdgeBins binEdgeShot(const Image& c, double pitch_mm, const Image* open_field) {
   out.pitch_mm = pitch_mm * b;
   const int nx = c.width() / b, ny = c.height() / b;
   out.data = Image(nx, ny), out.open = Image(nx, ny), out.weight = Image(nx, ny, 0.0f);
-  out.field = Image(nx, ny, 1.0f);
-  double field_sum = 0.0;
   for (int j = 0; j < ny; ++j)
     for (int i = 0; i < nx; ++i) {
-      double sum = 0.0, open = 0.0, field = 0.0;
+      double sum = 0.0, open = 0.0;
       for (int y = j * b; y < (j + 1) * b; ++y)
-        for (int x = i * b; x < (i + 1) * b; ++x) {
+        for (int x = i * b; x < (i + 1) * b; ++x)
           sum += static_cast<double>(c(x, y)), open += mask(x, y);
-          if (open_field) field += static_cast<double>((*open_field)(x, y));
-        }
       out.data(i, j) = static_cast<float>(sum / (b * b));
       out.open(i, j) = static_cast<float>(open / (b * b));
-      if (open_field)
-        out.field(i, j) = static_cast<float>(field / (b * b)), field_sum += field / (b * b);
     }
-  if (open_field) {
-    const double mean = field_sum / (static_cast<double>(nx) * ny);
-    if (!(mean > 0.0)) fail("characterize, edge: the flat field's mean {} is not positive", mean);
-    for (float& v : out.field.pixels()) v = static_cast<float>(static_cast<double>(v) / mean);
-  }
   // Bins on the plate's edge and next to it are left out: their pixels are
   // partly covered, which the binary mask does not describe.
   for (int j = 0; j < ny; ++j)
@@ -220,52 +206,20 @@ struct State {
   LinearFit linear;
 };
 
-// K * c / c at the principal point for c = cos^3 of the ray's angle (the
-// open field's inverse square and obliquity, continued beyond the panel):
-// the sum over the kernel's Gaussians of the integral of G(sigma) times
-// (1 + r^2 / D^2)^(-3/2). About 1 - 3 sigma^2 / D^2: 0.75 % for the
-// thesis's 50 mm at 1 m, which a flat-corrected shot shows as a lower halo
-// behind the plate than the open level suggests.
-double cosineCubedKept(const ScatterModel& kernel, double distance_mm) {
-  if (!(distance_mm > 0.0)) return 1.0;
-  double out = 0.0;
-  for (const GaussianTerm& term : kernel.components()) {
-    constexpr int kSteps = 400;
-    constexpr double kEnd = 10.0, kDt = kEnd / kSteps;
-    double sum = 0.0;
-    for (int i = 0; i < kSteps; ++i) {
-      const double t = (i + 0.5) * kDt, r = term.sigma * t / distance_mm;
-      sum += t * std::exp(-0.5 * t * t) * std::pow(1.0 + r * r, -1.5) * kDt;
-    }
-    out += term.fraction * sum;
-  }
-  return out;
-}
-
 class EdgeModel {
  public:
-  EdgeModel(const EdgeBins& bins, double crosstalk, double distance_mm)
-      : bins_(bins), crosstalk_(crosstalk), distance_mm_(distance_mm) {}
+  EdgeModel(const EdgeBins& bins, double crosstalk, const OpenBeamField& field)
+      : bins_(bins), crosstalk_(crosstalk), field_(field) {}
 
-  // The open border's halo K * (O T) / O = K * O / O + K * (O (T - 1)) / O:
-  // O (T - 1) vanishes beyond the panel, so the zero border is exact there
-  // and O is needed on the panel only; K * O / O is the cos^3 part's
-  // (cosineCubedKept), the heel being linear. The mirror's as before, on T.
+  // The halo in the open beam's field, K * (O T) / O (ScatterModel::spreadIn,
+  // the calibration's and the measurement's: decision 0041), the open
+  // border's O continued beyond the panel, the mirror's T O mirrored.
   std::vector<Image> basis(const Shape& s, std::span<const double> widths) const {
     std::vector<Image> out{withCrosstalk(bins_.open, crosstalk_)};
-    Image shadow = bins_.open;
-    for (size_t i = 0; i < shadow.size(); ++i)
-      shadow.pixels()[i] = bins_.field.pixels()[i] * (shadow.pixels()[i] - 1.0f);
+    const int nx = bins_.open.width(), ny = bins_.open.height();
     for (const ScatterModel& k : componentKernels(s, widths)) {
-      if (s.border == HaloBorder::kMirror) {
-        out.push_back(withCrosstalk(k.spread(bins_.open, bins_.pitch_mm, 1.0f), crosstalk_));
-        continue;
-      }
-      Image halo = k.spread(shadow, bins_.pitch_mm, 0.0f);
-      const auto kept = static_cast<float>(cosineCubedKept(k, distance_mm_));
-      for (size_t i = 0; i < halo.size(); ++i)
-        halo.pixels()[i] = kept + halo.pixels()[i] / bins_.field.pixels()[i];
-      out.push_back(withCrosstalk(std::move(halo), crosstalk_));
+      const HaloField field = k.haloField(field_, nx, ny, bins_.pitch_mm, bins_.binning);
+      out.push_back(withCrosstalk(k.spreadIn(bins_.open, bins_.pitch_mm, 1.0f, field), crosstalk_));
     }
     return out;
   }
@@ -282,7 +236,7 @@ class EdgeModel {
  private:
   const EdgeBins& bins_;
   double crosstalk_;
-  double distance_mm_;
+  const OpenBeamField& field_;
 };
 
 double EdgeModel::residualCorrelation(const Shape& s, const State& st) const {
@@ -530,7 +484,7 @@ void addSplitHalves(const EdgeBins& bins, const EdgeHaloOptions& options, const 
     for (int y = 0; y < ny; ++y)
       if ((y < ny / 2) != (half == 0))
         for (int x = 0; x < part.weight.width(); ++x) part.weight(x, y) = 0.0f;
-    const EdgeModel model(part, options.crosstalk, options.source_detector_distance_mm);
+    const EdgeModel model(part, options.crosstalk, options.field);
     halves.push_back(toScatter(s, fitShape(model, s, low, high)));
   }
   const int parameters = s.widths == 1 ? 2 : 4;
@@ -550,8 +504,8 @@ void addSplitHalves(const EdgeBins& bins, const EdgeHaloOptions& options, const 
 }  // namespace
 
 EdgeHaloFit fitEdgeHalo(const Image& corrected, double pitch_mm, const EdgeHaloOptions& options) {
-  const EdgeBins bins = binEdgeShot(corrected, pitch_mm, options.open_field);
-  const EdgeModel model(bins, options.crosstalk, options.source_detector_distance_mm);
+  const EdgeBins bins = binEdgeShot(corrected, pitch_mm);
+  const EdgeModel model(bins, options.crosstalk, options.field);
   const double shorter_mm = std::min(corrected.width(), corrected.height()) * pitch_mm;
   // Widths from a bin to twice the panel: the search may find the halo too
   // wide, which is then refused with its figures rather than clipped.

@@ -100,4 +100,16 @@ OpenBeamField OpenBeamField::fit(const OpenBeamGeometry& geometry, const Image& 
   return OpenBeamField(geometry, p(1) / p(0), p(2) / p(0));
 }
 
+OpenBeamField OpenBeamField::fromFrames(const OpenBeamGeometry& geometry, const Image* dark,
+                                        const Image* flat) {
+  if (!flat) return {};
+  if (!dark) return fit(geometry, *flat);
+  if (dark->width() != flat->width() || dark->height() != flat->height())
+    fail("the dark frame is {}x{} and the flat {}x{}", dark->width(), dark->height(), flat->width(),
+         flat->height());
+  Image signal = *flat;
+  for (size_t i = 0; i < signal.size(); ++i) signal.pixels()[i] -= dark->pixels()[i];
+  return fit(geometry, signal);
+}
+
 }  // namespace xgauge

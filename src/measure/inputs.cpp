@@ -66,6 +66,7 @@ PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
       normalizeRadiograph(std::move(raw), frames, spec.white_region, ClampPolicy::kNone, name);
   const Image& image = normalized.image;
   PreparedRadiograph out;
+  out.open_beam = OpenBeamField::fromFrames(machine.openBeamGeometry(), frames.dark, frames.flat);
   out.repaired_pixels = normalized.repaired_pixels;
   out.lag = normalized.lag;
   out.white_mean_uncertainty = normalized.white_mean_uncertainty;

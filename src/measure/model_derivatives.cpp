@@ -43,7 +43,8 @@ void writeRadiographRows(const IntensityDerivatives& d, const ScatterEstimate* s
           row[moving[static_cast<size_t>(k)]] =
               scale * static_cast<double>(d.per_parameter[static_cast<size_t>(k)](x, y));
       } else {
-        // out = mix(I, G) / open, as simulatePosed.
+        // out = mix(I, G) / (open F), as simulatePosed (F the flat's own
+        // halo, 1 in a uniform field).
         const ScatterEstimate::Tap tap = spread->tap(roi.x + x + 0.5, roi.y + y + 0.5);
         simulated = static_cast<double>(spread->simulated(scatter, intensity, tap));
         for (int k = 0; k < count; ++k) {
@@ -52,7 +53,7 @@ void writeRadiographRows(const IntensityDerivatives& d, const ScatterEstimate* s
               (1.0 - w) * static_cast<double>(d.per_parameter[static_cast<size_t>(k)](x, y)) +
               w * rate.at(tap);
           row[moving[static_cast<size_t>(k)]] =
-              scale * (mixed - simulated * rate.open) / spread->open;
+              scale * (mixed / spread->flatAt(tap) - simulated * rate.open) / spread->open;
         }
       }
       out[m] = scale * (simulated - static_cast<double>(measured(roi.x + x, roi.y + y)));

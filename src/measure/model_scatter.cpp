@@ -65,8 +65,14 @@ ScatterEstimate ForwardModel::spreadOf(const Image& coarse, int coarse_level, in
   // Outside the part's shadow the render is the open beam (1) and a
   // derivative image 0: only the shadow's rows and columns are summed. With
   // an open border the world beyond the panel is that level too.
-  out.blurred = job().scatter.spreadAround(coarse, machineAt(coarse_level).pitch_u_mm,
-                                           derivative ? 0.0f : 1.0f, 0.25);
+  // In the open beam's field (decision 0041) the halo is K * (I O) / O, a
+  // derivative's K * (dI O) / O.
+  const ScatterModel& scatter = job().scatter;
+  const double coarse_pitch = machineAt(coarse_level).pitch_u_mm;
+  HaloField field = scatter.haloField(this->radiograph(radiograph).open_beam, coarse.width(),
+                                      coarse.height(), coarse_pitch, 1 << coarse_level);
+  out.blurred = scatter.spreadAroundIn(coarse, coarse_pitch, derivative ? 0.0f : 1.0f, field, 0.25);
+  out.flat = std::move(field.flat);
   // The model's open-beam level in the white region (full-size coordinates).
   const PixelRect white = spec(radiograph).white_region;
   const double full_to_coarse = 1.0 / static_cast<double>(1 << coarse_level);
@@ -75,12 +81,17 @@ ScatterEstimate ForwardModel::spreadOf(const Image& coarse, int coarse_level, in
   out.ratio = full_to_coarse;
   double white_sum = 0.0;
   constexpr int kGrid = 8;
+  const double w = scatter.weight;
   for (int j = 0; j < kGrid; ++j)
-    for (int i = 0; i < kGrid; ++i)
-      white_sum += out.at(white.x + (i + 0.5) * white.width / kGrid,
-                          white.y + (j + 0.5) * white.height / kGrid);
-  const double w = job().scatter.weight;
-  out.open = (derivative ? 0.0 : 1.0 - w) + w * white_sum / (kGrid * kGrid);
+    for (int i = 0; i < kGrid; ++i) {
+      const ScatterEstimate::Tap t = out.tap(white.x + (i + 0.5) * white.width / kGrid,
+                                             white.y + (j + 0.5) * white.height / kGrid);
+      white_sum += out.flat.empty()
+                       ? out.at(t)
+                       : ((derivative ? 0.0 : 1.0 - w) + w * out.at(t)) / out.flatAt(t);
+    }
+  out.open = out.flat.empty() ? (derivative ? 0.0 : 1.0 - w) + w * white_sum / (kGrid * kGrid)
+                              : white_sum / (kGrid * kGrid);
   out.ratio = static_cast<double>(1 << level) / static_cast<double>(1 << coarse_level);
   return out;
 }

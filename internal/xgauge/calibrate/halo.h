@@ -55,6 +55,9 @@ struct HaloOptions {
   // deviations of the profile) widens the weight's and width's uncertainty
   // by half their difference.
   std::vector<HaloBorder> borders = {HaloBorder::kMirror, HaloBorder::kOpen};
+  // The open beam's field the halo acts in (image/open_beam.h, decision
+  // 0041): G(P) is then K * (P O) / O and the flat's own halo divides n.
+  OpenBeamField field;
 };
 
 struct HaloFit {
@@ -78,6 +81,7 @@ struct HaloFit {
   double unseen_change = 0.0;
   // The radiograph without the scatter and the darkening: (n - b g - c A) / a.
   Image primary;
+  OpenBeamField field;  // the options' field, for primaryWith
 
   // That primary for another weight and width (the same darkening and open
   // level): how a curve's uncertainty propagates the halo's.

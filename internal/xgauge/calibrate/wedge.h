@@ -145,6 +145,9 @@ struct WedgeCalibration {
   // The scatter taken out of the radiograph: the job's or the halo's.
   ScatterModel scatter;
   std::optional<HaloFit> halo;  // when estimated (its primary image moved to `normalized`)
+  // The open beam's field the halo is removed in (image/open_beam.h): fitted
+  // to the job's flat frame, uniform without one.
+  OpenBeamField open_beam;
   double seconds = 0.0;
   // Each step's seconds, in order (a wedge fitted as a known part: its
   // part calibration's among them).

@@ -103,12 +103,10 @@ struct EdgeHaloFit {
 
 struct EdgeHaloOptions {
   double crosstalk = 0.0;  // c, modelled in the shot
-  // flat - dark at full size (the open field's shape; optional): the halo
-  // acts on the open field times the transmission.
-  const Image* open_field = nullptr;
-  // D: the open field's cos^3 beyond the panel, which the open border's
-  // halo sees (0: none).
-  double source_detector_distance_mm = 0.0;
+  // The open beam's field (image/open_beam.h, fitted to the flat frame;
+  // uniform by default): the halo acts on the field times the
+  // transmission, K * (O T) / O (decision 0041).
+  OpenBeamField field;
   double max_sigma_fraction = 0.5;
   // The profile uncertainties (slow for the 4-parameter shapes); without,
   // the candidates' parameters alone.

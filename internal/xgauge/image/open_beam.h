@@ -39,6 +39,9 @@ class OpenBeamField {
   // more than 5 % off the first fit (bad pixels), are left out. Throws Error
   // when the flat has fewer than 100 such pixels.
   static OpenBeamField fit(const OpenBeamGeometry& geometry, const Image& flat);
+  // fit() to flat - dark (dark null: flat as it is); uniform without a flat.
+  static OpenBeamField fromFrames(const OpenBeamGeometry& geometry, const Image* dark,
+                                  const Image* flat);
 
   bool uniform() const { return !geometry_; }
   double heelUPerMm() const { return heel_u_; }

@@ -38,6 +38,9 @@ struct PreparedRadiograph {
   double lag_signal_white = 0.0;  // its mean over the white region (about 1)
   // The white region mean's relative standard uncertainty (NormalizedRadiograph).
   double white_mean_uncertainty = 0.0;
+  // The open beam's field fitted to the flat frame (uniform without one):
+  // the field the scatter's halo is simulated in (decision 0041).
+  OpenBeamField open_beam;
   static constexpr int kLagSignalWidthPx = 2048;
 };
 

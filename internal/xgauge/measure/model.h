@@ -62,9 +62,16 @@ namespace xgauge {
 // "scatter"): G(I) from a coarse render of the whole detector, and the
 // open-beam level the white-region normalization divides by.
 struct ScatterEstimate {
-  Image blurred;       // G(I) at the coarse level
+  // G(I) at the coarse level: in the open beam's field K * (I O) / O
+  // (image/scatter.h, ScatterModel::spreadIn; decision 0041).
+  Image blurred;
+  // The flat frame's own halo mix(1, K * O / O) at the coarse level, by
+  // which the flat-field divides; empty in a uniform field (1).
+  Image flat;
   double ratio = 1.0;  // coarse pixels per pixel of the level asked for
-  double open = 1.0;   // (1 - w) + w mean of G(I) over the white region
+  // The white region's mean of (1 - w) + w G(I), each over the flat's own
+  // halo there.
+  double open = 1.0;
   // G(I) at a continuous pixel coordinate of the level asked for (bilinear).
   double at(double x, double y) const { return at(tap(x, y)); }
   // The bilinear interpolation's four coarse pixels and weights at (x, y),
@@ -80,13 +87,23 @@ struct ScatterEstimate {
     return (1 - t.fy) * ((1 - t.fx) * value(t.x0, t.y0) + t.fx * value(t.x1, t.y0)) +
            t.fy * ((1 - t.fx) * value(t.x0, t.y1) + t.fx * value(t.x1, t.y1));
   }
+  // The flat's own halo at a tap (1 in a uniform field).
+  double flatAt(const Tap& t) const {
+    if (flat.empty()) return 1.0;
+    auto value = [&](int i, int j) { return static_cast<double>(flat(i, j)); };
+    return (1 - t.fy) * ((1 - t.fx) * value(t.x0, t.y0) + t.fx * value(t.x1, t.y0)) +
+           t.fy * ((1 - t.fx) * value(t.x0, t.y1) + t.fx * value(t.x1, t.y1));
+  }
+  // What a normalized value is divided by at a tap: open times the flat's
+  // own halo.
+  double openAt(const Tap& t) const { return open * flatAt(t); }
   // The simulated, normalized value of the pixel centred at (x, y) whose
-  // scatter-free intensity is `intensity`: mix(I, G) / open.
+  // scatter-free intensity is `intensity`: mix(I, G) / openAt.
   float simulated(const ScatterModel& scatter, double intensity, double x, double y) const {
     return simulated(scatter, intensity, tap(x, y));
   }
   float simulated(const ScatterModel& scatter, double intensity, const Tap& t) const {
-    return static_cast<float>(scatter.mix(intensity, at(t)) / open);
+    return static_cast<float>(scatter.mix(intensity, at(t)) / openAt(t));
   }
 };
 

@@ -43,6 +43,7 @@
 #include "xgauge/core/config.h"
 #include "xgauge/core/transform.h"
 #include "xgauge/image/image.h"
+#include "xgauge/image/open_beam.h"
 
 #include <array>
 #include <filesystem>
@@ -115,6 +116,10 @@ struct Machine {
   void validate() const;
 
   PixelRect detectorRect() const { return {0, 0, columns, rows}; }
+  // What the open beam's field needs (image/open_beam.h).
+  OpenBeamGeometry openBeamGeometry() const {
+    return {source_detector_distance_mm, cx_px, cy_px, pitch_u_mm, pitch_v_mm};
+  }
   Vec3 sourceWorld() const { return {0.0, 0.0, source_detector_distance_mm}; }
   // World point on the detector of a continuous pixel coordinate.
   Vec3 detectorPoint(double pu, double pv) const {

@@ -49,6 +49,7 @@ struct WidthField {
 
 WidthField widthField(const InField& in, const Image& like, double sigma_px, HaloBorder border) {
   WidthField out;
+  // Only the kernel's shape matters here (the weight is the fit's).
   out.kernel.weight = 0.5, out.kernel.sigma_mm = sigma_px * in.pitch_mm, out.kernel.border = border;
   out.pitch_mm = in.pitch_mm;
   if (!in.field || in.field->uniform()) return out;
@@ -61,8 +62,8 @@ WidthField widthField(const InField& in, const Image& like, double sigma_px, Hal
 
 // K * P for the halo's width and border: mirrored at the panel's edges, or
 // with open beam (a primary of 1) beyond them. In a non-uniform field
-// K * (P O) / O less the flat's own excess (`wf.excess`), which is 1 in the
-// open beam as the uniform field's.
+// K * (P O) / O less the flat's own excess (`wf.excess`): 1 in the open
+// beam, as the uniform field's.
 Image haloBlur(const Image& primary, double sigma_px, HaloBorder border, const WidthField& wf) {
   if (!wf.halo.uniform()) {
     Image out = wf.kernel.spreadIn(primary, wf.pitch_mm, 1.0f, wf.halo);
@@ -82,11 +83,18 @@ Image haloBlur(const Image& primary, double sigma_px, HaloBorder border, const W
 // divided by its own halo, mix(1, 1 + e): P = ((n - c A) (1 + w e) - b (G + e)) / a.
 void primaryStep(const Image& n, const std::vector<double>& attenuation, const Coefficients& k,
                  const Image& blurred, const WidthField& wf, Image& primary) {
-  const bool field = !wf.halo.uniform();
+  if (wf.halo.uniform()) {
+    for (int y = 0; y < n.height(); ++y)
+      for (int x = 0; x < n.width(); ++x)
+        primary(x, y) = static_cast<float>(
+            (at(n, x, y) - k.b * at(blurred, x, y) - k.c * attenuation[static_cast<size_t>(x)]) /
+            k.a);
+    return;
+  }
   const double w = k.b / (k.a + k.b);
   for (int y = 0; y < n.height(); ++y)
     for (int x = 0; x < n.width(); ++x) {
-      const double e = field ? at(wf.excess, x, y) : 0.0;
+      const double e = at(wf.excess, x, y);
       primary(x, y) = static_cast<float>(
           ((at(n, x, y) - k.c * attenuation[static_cast<size_t>(x)]) * (1.0 + w * e) -
            k.b * (at(blurred, x, y) + e)) /

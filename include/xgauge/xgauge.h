@@ -1,7 +1,8 @@
 // xgauge's front door: a part's dimensions measured from radiographs, and a
 // material calibrated, from code, in the style of Ceres's Solver::Options / Solve / Summary. This
-// header and xgauge/version.h are what the installed package exposes; they
-// need nothing but the C++ standard library. docs/library.md shows a whole
+// header, xgauge/runtime.h, radiographs.h, lab.h, production.h and
+// xgauge/version.h are what the installed package exposes; they need
+// nothing but the C++ standard library. docs/library.md shows a whole
 // program; docs/formats.md documents the job and result.json.
 //
 //   xgauge::MeasurementOptions options;

@@ -25,9 +25,11 @@ cmake -S tests/consumer -B "$tmp/build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DCMAKE_PREFIX_PATH="$tmp/prefix" -DCMAKE_FIND_PACKAGE_NO_PACKAGE_REGISTRY=ON \
   -DCMAKE_COMPILE_WARNING_AS_ERROR=ON
 cmake --build "$tmp/build"
-# Only the front door's headers are installed.
+# Only the front door's headers are installed (XGAUGE_PUBLIC_HEADERS).
 headers=$(cd "$tmp/prefix/include" && find . -type f | sort | tr '\n' ' ')
-[[ "$headers" == "./xgauge/version.h ./xgauge/xgauge.h " ]] ||
+expected="./xgauge/lab.h ./xgauge/production.h ./xgauge/radiographs.h ./xgauge/runtime.h "
+expected+="./xgauge/version.h ./xgauge/xgauge.h "
+[[ "$headers" == "$expected" ]] ||
   { echo "consumer-test: installed headers: $headers (expected the front door's only)" >&2; exit 1; }
 # The demo's data and material, made by the installed executable.
 x="$tmp/prefix/bin/xgauge"

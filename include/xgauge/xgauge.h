@@ -1,7 +1,8 @@
 // xgauge's front door: a part's dimensions measured from radiographs, and a
 // material calibrated, from code, in the style of Ceres's Solver::Options / Solve / Summary. This
-// header and xgauge/version.h are what the installed package exposes; they
-// need nothing but the C++ standard library. docs/library.md shows a whole
+// header, xgauge/runtime.h, radiographs.h, lab.h, production.h and
+// xgauge/version.h are what the installed package exposes; they need
+// nothing but the C++ standard library. docs/library.md shows a whole
 // program; docs/formats.md documents the job and result.json.
 //
 //   xgauge::MeasurementOptions options;
@@ -18,6 +19,9 @@
 // program that wants them per call sets `on_stage`.
 #pragma once
 
+#include "xgauge/runtime.h"
+
+#include <cstddef>
 #include <filesystem>
 #include <functional>
 #include <optional>
@@ -129,8 +133,10 @@ struct MeasurementSummary {
 MeasurementSummary measure(const MeasurementOptions& options);
 
 // Calibration of a material's curve I(x) (docs/method.md): from one
-// radiograph of a wedge, or from radiographs of a part of known dimensions.
-enum class CalibrationKind { kWedge, kPart };
+// radiograph of a wedge, or from radiographs of a part of known dimensions;
+// or of the detector's pose (tilt and turn) from radiographs of a part of
+// known dimensions (kGeometry: machine.json and geometry.json).
+enum class CalibrationKind { kWedge, kPart, kGeometry };
 
 enum class CalibrationTermination {
   kCalibrated,  // material.json, calibration.json (and report.html) written
@@ -153,6 +159,8 @@ struct CalibrationOptions {
   // deviation from the true one.
   std::filesystem::path truth_file;
   bool write_report = true;
+  // kGeometry: how far from the machine's stated pose each angle may go (deg).
+  double reach_deg = 2.0;
 
   bool IsValid(std::string* error) const;
 };
@@ -169,13 +177,17 @@ struct CalibrationSummary {
   std::vector<Term> terms;
   double transmission_uncertainty = 0.0;
   std::optional<std::pair<double, double>> calibrated_range_mm;
+  // kGeometry: the detector's tilt about u and v and its rotation (deg),
+  // their standard uncertainties, and the worst misfit ratio.
+  std::vector<double> detector_angles_deg, detector_angle_uncertainties_deg;
+  double misfit_ratio = 0.0;
   double seconds = 0.0;
 
   std::string BriefReport() const;
   // What `xgauge calibrate` prints: the wedge's ramp or pose, the fits by
   // number of terms, the curve's uncertainty and its influences, the material.
   std::string FullReport() const;
-  // material.json's text; empty unless kCalibrated.
+  // material.json's text; empty unless kCalibrated, and for kGeometry.
   std::string ToJson() const;
 
  private:
@@ -187,5 +199,41 @@ struct CalibrationSummary {
 // Calibrates. Never throws for bad input or a failed step (see
 // CalibrationTermination).
 CalibrationSummary calibrate(const CalibrationOptions& options);
+
+// The detector characterised from dark and flat series and shots of an
+// opaque edge, a lag pair and a covered quadrant: halo, lag, crosstalk, bad
+// pixels (detector.json and bad_pixels.json).
+struct CharacterizationOptions {
+  std::filesystem::path job_file;       // the characterisation job (docs/formats.md)
+  std::filesystem::path output_folder;  // required
+};
+
+struct CharacterizationSummary {
+  RunTermination termination = RunTermination::kFailure;
+  // kFailure: why; otherwise what was written, in words.
+  std::string message;
+  std::string report;  // what `xgauge characterize` prints
+};
+
+// Never throws for bad input; shows a progress bar where enabled (xgauge/runtime.h).
+CharacterizationSummary characterize(const CharacterizationOptions& options);
+
+// The measuring method verified on a calibrated master (ISO 15530-3): its
+// bias and repeatability per dimension (verification.json), for
+// measurement jobs to name.
+struct VerificationOptions {
+  std::filesystem::path job_file;       // the master's certificate and its measurement jobs
+  std::filesystem::path output_folder;  // required
+};
+
+struct VerificationSummary {
+  RunTermination termination = RunTermination::kFailure;
+  // kFailure: why; otherwise what was written, in words.
+  std::string message;
+  std::size_t measurements = 0;  // of the master
+  std::string report;            // the table `xgauge verify` prints
+};
+
+VerificationSummary verify(const VerificationOptions& options);
 
 }  // namespace xgauge

@@ -340,7 +340,7 @@ class ProgressScope {
 
 // Measuring -------------------------------------------------------------------
 
-// A measurement as `xgauge measure` makes it (apps/xgauge/measure_command.cpp):
+// A measurement as `xgauge measure` makes it (apps/xgauge/measure_commands.cpp):
 // the inputs, the model that measured, the result and the full-size
 // simulated radiographs whose losses the result carries.
 struct Measurement {
@@ -383,7 +383,7 @@ std::unique_ptr<Measurement> measureJob(const py::object& job_spec, const fs::pa
 // Calibrating -----------------------------------------------------------------
 
 // A calibration as `xgauge calibrate wedge|part JOB -o FOLDER [--truth T]`
-// makes it (apps/xgauge/calibrate_command.cpp): its outputs written into
+// makes it (apps/xgauge/measure_commands.cpp): its outputs written into
 // `folder`; after a failure the diagnostic written there and Error raised,
 // naming the step.
 void calibrate(const std::string& kind, const fs::path& job_file, const fs::path& folder,

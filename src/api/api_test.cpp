@@ -4,6 +4,9 @@
 // bad jobs as a failure with the reason, never an exception.
 #include "xgauge/xgauge.h"
 
+#include "xgauge/lab.h"
+#include "xgauge/production.h"
+
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/image/tiff.h"
 #include "xgauge/material/exponential_sum.h"
@@ -293,6 +296,53 @@ TEST_F(FrontDoorCalibration, AFailedStepIsNamedAndLeavesOnlyItsDiagnostic) {
   EXPECT_FALSE(incomplete.IsValid(&why));
   EXPECT_NE(why.find("output_folder"), std::string::npos) << why;
   EXPECT_EQ(calibrate(incomplete).termination, CalibrationTermination::kFailure);
+}
+
+}  // namespace
+}  // namespace xgauge
+
+namespace xgauge {
+namespace {
+
+// The rest of the front door (xgauge/runtime.h, radiographs.h, lab.h,
+// production.h, characterize and verify): bad input is a failure with the
+// CLI's message, never an exception.
+TEST(FrontDoorRest, BadInputIsAFailureWithItsReason) {
+  const fs::path missing = fs::temp_directory_path() / "xgauge_api_missing.json";
+  EXPECT_EQ(characterize({missing, fs::temp_directory_path() / "xgauge_api_c"}).termination,
+            RunTermination::kFailure);
+  const VerificationSummary verified =
+      verify({missing, fs::temp_directory_path() / "xgauge_api_v"});
+  EXPECT_EQ(verified.termination, RunTermination::kFailure);
+  EXPECT_NE(verified.message.find("xgauge_api_missing.json"), std::string::npos);
+  MeasurementStudyOptions study_options;
+  study_options.output_folder = fs::temp_directory_path() / "xgauge_api_study";
+  study_options.shard = "0/2";
+  const MeasurementStudySummary studied = study(study_options);
+  EXPECT_EQ(studied.termination, RunTermination::kFailure);
+  EXPECT_EQ(studied.message, "--shard 0/2: expected i/N with 1 <= i <= N");
+  InspectionOptions inspection;
+  inspection.source = "a", inspection.watch = "b";
+  EXPECT_EQ(inspect(inspection).message, "inspect: give a source folder or --watch, not both");
+  EXPECT_EQ(exportLot({}).message, "export: give --dfq FILE, --csv FILE or both");
+  EXPECT_STREQ(RunTerminationToString(RunTermination::kDone), "done");
+}
+
+TEST(FrontDoorRest, GeometryCalibrationIsACalibrationKind) {
+  CalibrationOptions options;
+  options.kind = CalibrationKind::kGeometry;
+  options.job_file = "job.json";
+  options.output_folder = "out";
+  std::string why;
+  EXPECT_TRUE(options.IsValid(&why)) << why;
+  options.reach_deg = 0.0;
+  EXPECT_FALSE(options.IsValid(&why));
+  EXPECT_NE(why.find("reach_deg"), std::string::npos);
+  options.reach_deg = 2.0;
+  options.job_file = fs::temp_directory_path() / "xgauge_api_missing.json";
+  const CalibrationSummary summary = calibrate(options);
+  EXPECT_EQ(summary.termination, CalibrationTermination::kFailure);
+  EXPECT_FALSE(summary.message.empty());
 }
 
 }  // namespace

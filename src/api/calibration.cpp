@@ -4,6 +4,7 @@
 // a print.
 #include "xgauge/xgauge.h"
 
+#include "xgauge/calibrate/geometry.h"
 #include "xgauge/calibrate/part.h"
 #include "xgauge/calibrate/wedge.h"
 #include "xgauge/core/error.h"
@@ -154,7 +155,34 @@ CalibrationSummary run(const CalibrationOptions& options, Calibrate calibrate_fr
                    describe(result) + materialText(result.material, options));
 }
 
+// The detector's pose from a part of known dimensions: machine.json and
+// geometry.json written, the angles in the summary.
+CalibrationSummary calibrateGeometryOrThrow(const CalibrationOptions& options) {
+  const GeometryCalibration g = calibrateGeometry(options.job_file, options.reach_deg);
+  writeGeometryCalibration(g, options.output_folder);
+  CalibrationSummary summary;
+  summary.termination = CalibrationTermination::kCalibrated;
+  summary.step = "geometry";
+  summary.detector_angles_deg.assign(g.angles_deg.begin(), g.angles_deg.end());
+  summary.detector_angle_uncertainties_deg.assign(g.uncertainty_deg.begin(),
+                                                  g.uncertainty_deg.end());
+  summary.misfit_ratio = g.misfit_ratio;
+  CalibrationSummaryBuilder::set(
+      summary,
+      fmt::format("detector tilt about u  {:+.4f} deg  u {:.4f}\n"
+                  "detector tilt about v  {:+.4f} deg  u {:.4f}\n"
+                  "detector rotation      {:+.4f} deg  u {:.4f}\n"
+                  "worst misfit ratio     {:.2f}\n"
+                  "wrote {}/machine.json\n",
+                  g.angles_deg[0], g.uncertainty_deg[0], g.angles_deg[1], g.uncertainty_deg[1],
+                  g.angles_deg[2], g.uncertainty_deg[2], g.misfit_ratio,
+                  options.output_folder.string()),
+      std::string());
+  return summary;
+}
+
 CalibrationSummary calibrateOrThrow(const CalibrationOptions& options) {
+  if (options.kind == CalibrationKind::kGeometry) return calibrateGeometryOrThrow(options);
   if (options.kind == CalibrationKind::kWedge)
     return run<WedgeCalibrationJob, WedgeCalibration>(
         options, [](const auto& job, auto& result) { calibrateFromWedge(job, result); },
@@ -188,14 +216,22 @@ bool CalibrationOptions::IsValid(std::string* error) const {
   };
   if (job_file.empty()) return invalid("job_file: empty (the calibration job)");
   if (output_folder.empty()) return invalid("output_folder: empty (where the material goes)");
-  if (kind != CalibrationKind::kWedge && kind != CalibrationKind::kPart)
-    return invalid("kind: kWedge or kPart");
+  if (kind != CalibrationKind::kWedge && kind != CalibrationKind::kPart &&
+      kind != CalibrationKind::kGeometry)
+    return invalid("kind: kWedge, kPart or kGeometry");
+  if (kind == CalibrationKind::kGeometry && !(reach_deg > 0.0 && reach_deg <= 10.0))
+    return invalid("reach_deg: more than 0 and at most 10 (deg)");
   return true;
 }
 
 std::string CalibrationSummary::BriefReport() const {
   if (termination != CalibrationTermination::kCalibrated)
     return std::string(CalibrationTerminationToString(termination)) + ": " + message;
+  if (detector_angles_deg.size() == 3)
+    return fmt::format(
+        "calibrated: detector tilt {:+.4f}, {:+.4f} deg, rotation {:+.4f} deg, "
+        "worst misfit ratio {:.2f}",
+        detector_angles_deg[0], detector_angles_deg[1], detector_angles_deg[2], misfit_ratio);
   std::string line = fmt::format("calibrated: {} term(s), u of I(x) {:.2g}", terms.size(),
                                  transmission_uncertainty);
   if (calibrated_range_mm)

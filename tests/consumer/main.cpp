@@ -1,11 +1,16 @@
 // Consumer of the installed xgauge library (see CMakeLists.txt): measures a
-// job through the front door, xgauge/xgauge.h, the only header it may use,
+// job through the front door, xgauge/xgauge.h (with the headers beside it,
+// the only ones it may use),
 // and checks what the virtual lab's truth tells: the fit is a measurement,
 // every measured dimension lies within 0.05 mm of its true value, the
 // result's JSON and reports are there, a stage callback ran, and bad
 // options and a missing job come back as failures with their reasons.
 // Exit status 0 when every check passes.
 //   xgauge_consumer JOB TRUTH OUTPUT_FOLDER
+#include "xgauge/lab.h"
+#include "xgauge/production.h"
+#include "xgauge/radiographs.h"
+#include "xgauge/runtime.h"
 #include "xgauge/version.h"
 #include "xgauge/xgauge.h"
 
@@ -75,6 +80,23 @@ int main(int argc, char** argv) {
   check(failed.termination == xgauge::TerminationType::kFailure &&
             failed.message.find(".missing") != std::string::npos && failed.exit_status == 1,
         "a missing job is a failure naming the file: " + failed.message);
+
+  // The rest of the front door fails softly too, naming what it could not use.
+  xgauge::ConversionOptions conversion;
+  conversion.input = std::string(argv[1]) + ".missing.tif";
+  conversion.output = std::string(argv[3]) + "/converted.tif";
+  const xgauge::ConversionSummary converted = xgauge::convert(conversion);
+  check(converted.termination == xgauge::RunTermination::kFailure &&
+            converted.message.find(".missing.tif") != std::string::npos,
+        "a missing radiograph is a conversion failure: " + converted.message);
+  xgauge::SimulationOptions simulation;
+  simulation.recipe = std::string(argv[1]) + ".missing";
+  simulation.output_folder = std::string(argv[3]) + "/simulated";
+  check(xgauge::simulate(simulation).termination == xgauge::RunTermination::kFailure,
+        "a missing recipe is a simulation failure");
+  xgauge::LotExportOptions lot_export;
+  check(xgauge::exportLot(lot_export).termination == xgauge::RunTermination::kFailure,
+        "an export without files is a failure");
 
   std::printf("%s\n", failures == 0 ? "all checks passed" : "some checks FAILED");
   return failures == 0 ? 0 : 1;

@@ -330,22 +330,15 @@ WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job) {
   return out;
 }
 
-void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
-  const auto start = std::chrono::steady_clock::now();
-  auto clock = start;
-  const Machine& machine = job.machine;
-  const std::string name = job.radiograph.image.string();
-  out = WedgeCalibration{};
-  out.step = "normalize the radiograph";
-  if (!job.rate_floor)
-    spdlog::warn(
-        "{}: no rate_floor: the curve's rates are not bounded by the material's attenuation at "
-        "the tube voltage, and it may level off beyond the wedge's thickness",
-        job.file.string());
+namespace {
 
-  // 1. Normalize (the whole image: the ramp finder below looks for the wedge
-  // itself, and says so clearly when there is none); remove the scatter.
+// 1. The wedge's shot normalized (the whole image: the ramp finder looks for
+// the wedge itself, and says so clearly when there is none): dark, flat,
+// crosstalk, bad pixels and lag; out.open_beam from the dark and flat.
+Image normalizeWedgeShot(const WedgeCalibrationJob& job, WedgeCalibration& out) {
+  const Machine& machine = job.machine;
   const RadiographSpec& spec = job.radiograph;
+  const std::string name = spec.image.string();
   std::optional<Image> dark, flat;
   if (!spec.dark.empty())
     dark = readRadiograph(spec.dark).image, flat = readRadiograph(spec.flat).image;
@@ -377,8 +370,28 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
     spdlog::info("{}: lag of {} subtracted, {}", name, spec.previous.string(),
                  describeLag(*prepared.lag));
   out.lag = prepared.lag;
+  return std::move(prepared.image);
+}
+
+}  // namespace
+
+void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
+  const auto start = std::chrono::steady_clock::now();
+  auto clock = start;
+  const Machine& machine = job.machine;
+  const std::string name = job.radiograph.image.string();
+  out = WedgeCalibration{};
+  out.step = "normalize the radiograph";
+  if (!job.rate_floor)
+    spdlog::warn(
+        "{}: no rate_floor: the curve's rates are not bounded by the material's attenuation at "
+        "the tube voltage, and it may level off beyond the wedge's thickness",
+        job.file.string());
+
+  // 1. Normalize; remove the scatter.
+  const RadiographSpec& spec = job.radiograph;
+  const Image normalized = normalizeWedgeShot(job, out);
   addStepSeconds(out.step_seconds, out.step, clock);
-  const Image normalized = std::move(prepared.image);
   Image image = normalized;
   out.normalized = normalized;  // what a failure below shows
   std::optional<HaloFit> found;

@@ -217,43 +217,44 @@ void intoField(Image& total, float outside, const HaloField& field) {
   for (size_t i = 0; i < t.size(); ++i) t[i] = (t[i] + outside * k[i]) / o[i];
 }
 
+// The halo of `image` in the open beam's field, (K * ((I - outside) O) +
+// outside K * O) / O, each of the kernel's Gaussian terms by `blur`.
+template <typename Blur>
+Image spreadInField(const Image& image, float outside, const HaloField& field,
+                    const std::vector<GaussianTerm>& terms, HaloBorder border, const Blur& blur) {
+  const BlurBorder blur_border =
+      border == HaloBorder::kOpen ? BlurBorder::kZero : BlurBorder::kMirror;
+  const Image shifted = timesField(image, outside, field);
+  Image total;
+  for (const GaussianTerm& term : terms)
+    if (term.fraction > 0.0)
+      addWeighted(total, blur(shifted, term.sigma, blur_border), static_cast<float>(term.fraction));
+  intoField(total, outside, field);
+  return total;
+}
+
 }  // namespace
 
 Image ScatterModel::spreadIn(const Image& image, double pitch_mm, float outside,
                              const HaloField& field) const {
   if (field.uniform()) return spread(image, pitch_mm, outside);
-  const BlurBorder blur_border =
-      border == HaloBorder::kOpen ? BlurBorder::kZero : BlurBorder::kMirror;
-  const Image shifted = timesField(image, outside, field);
-  Image total;
-  for (const GaussianTerm& term : components()) {
-    if (term.fraction <= 0.0) continue;
-    addWeighted(total, gaussianBlur(shifted, term.sigma / pitch_mm, blur_border),
-                static_cast<float>(term.fraction));
-  }
-  intoField(total, outside, field);
-  return total;
+  return spreadInField(image, outside, field, components(), border,
+                       [&](const Image& shifted, double term_sigma_mm, BlurBorder blur_border) {
+                         return gaussianBlur(shifted, term_sigma_mm / pitch_mm, blur_border);
+                       });
 }
 
 Image ScatterModel::spreadAroundIn(const Image& image, double pitch_mm, float outside,
                                    const HaloField& field, double sigma_shrink_px2) const {
   if (field.uniform()) return spreadAround(image, pitch_mm, outside, sigma_shrink_px2);
-  const BlurBorder blur_border =
-      border == HaloBorder::kOpen ? BlurBorder::kZero : BlurBorder::kMirror;
-  const Image shifted = timesField(image, outside, field);
-  Image total;
-  for (const GaussianTerm& term : components()) {
-    if (term.fraction <= 0.0) continue;
-    const double sigma = term.sigma / pitch_mm;
-    addWeighted(
-        total,
-        gaussianBlurAround(
+  return spreadInField(
+      image, outside, field, components(), border,
+      [&](const Image& shifted, double term_sigma_mm, BlurBorder blur_border) {
+        const double sigma = term_sigma_mm / pitch_mm;
+        return gaussianBlurAround(
             shifted, std::sqrt(std::max(sigma * sigma - sigma_shrink_px2, 0.25 * sigma * sigma)),
-            0.0f, blur_border),
-        static_cast<float>(term.fraction));
-  }
-  intoField(total, outside, field);
-  return total;
+            0.0f, blur_border);
+      });
 }
 
 Image ScatterModel::apply(Image image, double pitch_mm, float outside) const {

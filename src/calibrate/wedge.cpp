@@ -265,10 +265,24 @@ void combineCurveUncertainty(const std::string& name, WedgeCalibration& out) {
   }
 }
 
+Image WedgeCalibration::primaryWith(const Image& radiograph, double pitch_mm,
+                                    const PixelRect& white_region, double weight, double sigma_mm,
+                                    double heel_share) const {
+  if (halo) {
+    HaloFit moved = *halo;
+    moved.field = moved.field.withHeelShare(heel_share);
+    return moved.primaryWith(radiograph, pitch_mm, weight, sigma_mm);
+  }
+  ScatterModel moved = scatter;
+  moved.weight = weight, moved.sigma_mm = sigma_mm;
+  return moved.remove(radiograph, pitch_mm, white_region, open_beam.withHeelShare(heel_share));
+}
+
 namespace {
 
 // Step 7 of the ramp method, what the table cannot show: the curve's
-// change when the scatter's weight and width and the wedge's dimensions
+// change when the scatter's weight and width, the heel's share of the
+// flat's slope and the wedge's dimensions
 // move by their standard uncertainties (GUM, sensitivity by re-solving),
 // into out.influences. `geometry` and `image` are as the ramp was read
 // (transposed for a turned wedge), `normalized` the radiograph before the
@@ -282,7 +296,8 @@ void rampInfluences(const WedgeCalibrationJob& job, const Machine& geometry,
   const ExponentialSum material = out.material;
   const double range = out.x_max_mm;
   auto propagate = [&](const std::string& influence, double value, double u,
-                       const Image& shifted_image, double thickness, double length) {
+                       const Image& shifted_image, double thickness, double length,
+                       const char* unit = "mm") {
     if (!(u > 0.0)) return;
     WedgeCalibration moved;
     try {
@@ -291,22 +306,15 @@ void rampInfluences(const WedgeCalibrationJob& job, const Machine& geometry,
       fail("the calibration does not survive its {} moved by its standard uncertainty ({}): {}",
            influence, u, e.message());
     }
-    out.influences.push_back(
-        {influence, value, u, largestDifference(material, moved.material, range), moved.material});
+    out.influences.push_back({influence, value, u,
+                              largestDifference(material, moved.material, range), moved.material,
+                              unit});
   };
   const ScatterModel& scatter = out.scatter;
   if (scatter.enabled()) {
-    // The radiograph without a scatter of another weight or width: the
-    // halo's removal (with its darkening) or the job's.
-    auto without = [&](double weight, double sigma_mm) {
-      Image removed;
-      if (out.halo) {
-        removed = out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
-      } else {
-        ScatterModel moved = scatter;
-        moved.weight = weight, moved.sigma_mm = sigma_mm;
-        removed = moved.remove(normalized, machine.pitch_u_mm, spec.white_region, out.open_beam);
-      }
+    auto without = [&](double weight, double sigma_mm, double heel = OpenBeamField::kHeelShare) {
+      Image removed = out.primaryWith(normalized, machine.pitch_u_mm, spec.white_region, weight,
+                                      sigma_mm, heel);
       return out.turned ? transposed(removed) : removed;
     };
     propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
@@ -315,6 +323,12 @@ void rampInfluences(const WedgeCalibrationJob& job, const Machine& geometry,
     propagate(kScatterWidthInfluence, scatter.sigma_mm, scatter.sigma_uncertainty_mm,
               without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
               job.max_thickness_mm, job.ramp_length_mm);
+    if (out.open_beam.sloped())
+      propagate(kOpenBeamHeelInfluence, OpenBeamField::kHeelShare,
+                OpenBeamField::kHeelShareUncertainty,
+                without(scatter.weight, scatter.sigma_mm,
+                        OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty),
+                job.max_thickness_mm, job.ramp_length_mm, "1");
   }
   propagate("wedge max_thickness_mm", job.max_thickness_mm, job.max_thickness_uncertainty_mm, image,
             job.max_thickness_mm + job.max_thickness_uncertainty_mm, job.ramp_length_mm);

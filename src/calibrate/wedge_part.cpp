@@ -120,7 +120,8 @@ void knownWedgeInfluences(const WedgeCalibrationJob& job, const PartCalibrationJ
   out.step = "the curve's uncertainty";
   const int terms = out.fit.best().terms;
   auto propagate = [&](const std::string& influence, double value, double u,
-                       const MeasurementInputs& moved, const std::vector<double>& at) {
+                       const MeasurementInputs& moved, const std::vector<double>& at,
+                       const char* unit = "mm") {
     if (!(u > 0.0)) return;
     try {
       ForwardModel model(moved, out.material);
@@ -132,7 +133,7 @@ void knownWedgeInfluences(const WedgeCalibrationJob& job, const PartCalibrationJ
       const CurveFit fit = fitCurve(table.path_mm, table.transmission, options, name);
       const ExponentialSum curve(fit.best().fitted);
       out.influences.push_back(
-          {influence, value, u, largestDifference(out.material, curve, out.x_max_mm), curve});
+          {influence, value, u, largestDifference(out.material, curve, out.x_max_mm), curve, unit});
     } catch (const Error& e) {
       fail("the calibration does not survive its {} moved by its standard uncertainty ({}): {}",
            influence, u, e.message());
@@ -140,12 +141,9 @@ void knownWedgeInfluences(const WedgeCalibrationJob& job, const PartCalibrationJ
   };
   const ScatterModel& scatter = out.scatter;
   if (scatter.enabled()) {
-    auto without = [&](double weight, double sigma_mm) {
-      if (out.halo) return out.halo->primaryWith(normalized, machine.pitch_u_mm, weight, sigma_mm);
-      ScatterModel moved = scatter;
-      moved.weight = weight, moved.sigma_mm = sigma_mm;
-      return moved.remove(normalized, machine.pitch_u_mm, job.radiograph.white_region,
-                          out.open_beam);
+    auto without = [&](double weight, double sigma_mm, double heel = OpenBeamField::kHeelShare) {
+      return out.primaryWith(normalized, machine.pitch_u_mm, job.radiograph.white_region, weight,
+                             sigma_mm, heel);
     };
     propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
               knownWedgeInputs(
@@ -157,6 +155,15 @@ void knownWedgeInfluences(const WedgeCalibrationJob& job, const PartCalibrationJ
                   job, without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
                   job.caliper),
               theta);
+    if (out.open_beam.sloped())
+      propagate(kOpenBeamHeelInfluence, OpenBeamField::kHeelShare,
+                OpenBeamField::kHeelShareUncertainty,
+                knownWedgeInputs(
+                    job,
+                    without(scatter.weight, scatter.sigma_mm,
+                            OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty),
+                    job.caliper),
+                theta, "1");
   }
   // A dimension's value is in theta (the model's first entries, fixed or
   // free): moved up, or down where up breaks its bounds or a constraint.

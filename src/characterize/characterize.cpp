@@ -175,17 +175,21 @@ nlohmann::json detectorJson(const Characterization& c, const std::string& bad_pi
     }
     nlohmann::json scatter = h.scatter.toJson();
     scatter["shape"] = toString(h.scatter.shape), scatter["border"] = toString(h.scatter.border);
-    out["halo"] = {{"scatter", scatter},
-                   {"gaussian_equivalent_sigma_mm", h.equivalent_sigma_mm},
-                   {"gaussian_equivalent_sigma_uncertainty_mm", h.equivalent_sigma_uncertainty_mm},
-                   {"noise_scale", h.noise_scale},
-                   {"split_halves",
-                    {{"weight", h.split_halves_weight},
-                     {"gaussian_equivalent_sigma_mm", h.split_halves_equivalent_sigma_mm}}},
-                   {"binning", h.binning},
-                   {"bins", h.bins},
-                   {"candidates", candidates},
-                   {"choice", h.choice}};
+    out["halo"] = {
+        {"scatter", scatter},
+        {"gaussian_equivalent_sigma_mm", h.equivalent_sigma_mm},
+        {"gaussian_equivalent_sigma_uncertainty_mm", h.equivalent_sigma_uncertainty_mm},
+        {"noise_scale", h.noise_scale},
+        {"split_halves",
+         {{"weight", h.split_halves_weight},
+          {"gaussian_equivalent_sigma_mm", h.split_halves_equivalent_sigma_mm}}},
+        {"open_beam_heel",
+         {{"weight_change", h.heel_share_weight_change},
+          {"gaussian_equivalent_sigma_change_mm", h.heel_share_equivalent_sigma_change_mm}}},
+        {"binning", h.binning},
+        {"bins", h.bins},
+        {"candidates", candidates},
+        {"choice", h.choice}};
   }
   if (c.lag) out["lag_fraction"] = estimateJson(*c.lag);
   if (c.crosstalk) out["crosstalk"] = estimateJson(*c.crosstalk);

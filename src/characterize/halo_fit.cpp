@@ -501,6 +501,28 @@ void addSplitHalves(const EdgeBins& bins, const EdgeHaloOptions& options, const 
                  0.5 * (halves[0].equivalentSigmaMm() - halves[1].equivalentSigmaMm()));
 }
 
+// The flat cannot tell the tube's heel from a slope of the panel's gain
+// (image/open_beam.h): the chosen shape fitted again with the heel's share
+// moved by its standard uncertainty; each parameter's change is added in
+// quadrature to its uncertainty.
+void addHeelShare(const EdgeBins& bins, const EdgeHaloOptions& options, const Shape& s, double low,
+                  double high, EdgeHaloFit& out) {
+  if (!options.field.sloped()) return;
+  const OpenBeamField moved_field =
+      options.field.withHeelShare(OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty);
+  const EdgeModel model(bins, options.crosstalk, moved_field);
+  const ScatterModel moved = toScatter(s, fitShape(model, s, low, high));
+  const int parameters = s.widths == 1 ? 2 : 4;
+  for (int p = 0; p < parameters; ++p) {
+    const double change = parameterOf(moved, p) - parameterOf(out.scatter, p);
+    setUncertainty(out.scatter, p, std::hypot(uncertaintyOf(out.scatter, p), change));
+  }
+  out.heel_share_weight_change = moved.weight - out.scatter.weight;
+  out.heel_share_equivalent_sigma_change_mm = moved.equivalentSigmaMm() - out.equivalent_sigma_mm;
+  out.equivalent_sigma_uncertainty_mm =
+      std::hypot(out.equivalent_sigma_uncertainty_mm, out.heel_share_equivalent_sigma_change_mm);
+}
+
 }  // namespace
 
 EdgeHaloFit fitEdgeHalo(const Image& corrected, double pitch_mm, const EdgeHaloOptions& options) {
@@ -587,6 +609,7 @@ EdgeHaloFit fitEdgeHalo(const Image& corrected, double pitch_mm, const EdgeHaloO
   out.equivalent_sigma_uncertainty_mm =
       s.widths == 1 ? out.scatter.sigma_uncertainty_mm : eq_spread;
   addSplitHalves(bins, options, s, low, high, out);
+  addHeelShare(bins, options, s, low, high, out);
   return out;
 }
 

@@ -6,7 +6,10 @@
 #include <Eigen/Dense>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
+#include <limits>
+#include <utility>
 
 namespace xgauge {
 
@@ -71,15 +74,32 @@ Image OpenBeamField::blurredOverThePlane(int width, int height, double scale,
   return out;
 }
 
-OpenBeamField OpenBeamField::fit(const OpenBeamGeometry& geometry, const Image& flat) {
-  // flat / cos^3 = c0 (1 + a x + b y): linear in (c0, c0 a, c0 b); every
-  // step-th pixel along each axis (about 256^2 of them) is plenty.
-  const int step = std::max(1, std::max(flat.width(), flat.height()) / 256);
+namespace {
+
+// The fall-off's source distance for a share s of the machine's cos^3
+// curvature (its curvature near the centre, 3 / (2 D^2), scales as 1 / D^2):
+// D / sqrt(s); s = 0, no fall-off, a source at 1e6 D (cos^3 within 1e-12
+// of 1 over the panel).
+double falloffDistance(double distance_mm, double share) {
+  return share > 1e-12 ? distance_mm / std::sqrt(share) : distance_mm * 1e6;
+}
+
+struct HeelFit {
+  double c0 = 0.0, a = 0.0, b = 0.0;
+  double residual = std::numeric_limits<double>::infinity();  // relative, over the kept pixels
+};
+
+// flat / cos^3 = c0 (1 + a x + b y) by linear least squares in (c0, c0 a,
+// c0 b) on every step-th pixel along each axis; a second pass leaves out the
+// pixels more than 5 % off the first (bad pixels).
+HeelFit fitHeel(const OpenBeamGeometry& geometry, const Image& flat, int step) {
   const OpenBeamField cosine(geometry, 0.0, 0.0);
   Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  HeelFit out;
   for (int pass = 0; pass < 2; ++pass) {
     Eigen::Matrix3d normal = Eigen::Matrix3d::Zero();
     Eigen::Vector3d right = Eigen::Vector3d::Zero();
+    double squares = 0.0;
     int count = 0;
     for (int v = step / 2; v < flat.height(); v += step)
       for (int u = step / 2; u < flat.width(); u += step) {
@@ -90,14 +110,61 @@ OpenBeamField OpenBeamField::fit(const OpenBeamGeometry& geometry, const Image& 
         const double c = cosine.at(u + 0.5, v + 0.5);
         const Eigen::Vector3d row(c, c * x, c * y);
         if (pass == 1 && !(std::abs(value / row.dot(p) - 1.0) <= 0.05)) continue;
-        normal += row * row.transpose(), right += row * value, ++count;
+        normal += row * row.transpose(), right += row * value, squares += value * value, ++count;
       }
     if (count < 100)
       fail("the flat frame has only {} usable pixels for the open beam's heel", count);
     p = normal.ldlt().solve(right);
     if (!(p(0) > 0.0)) fail("the flat frame's level is not positive: {}", p(0));
+    // |value - row p|^2 summed = squares - 2 p.right + p' N p = squares - p.right.
+    out.residual = std::max(0.0, squares - p.dot(right)) / (p(0) * p(0) * count);
   }
-  return OpenBeamField(geometry, p(1) / p(0), p(2) / p(0));
+  out.c0 = p(0), out.a = p(1) / p(0), out.b = p(2) / p(0);
+  return out;
+}
+
+}  // namespace
+
+OpenBeamField OpenBeamField::fit(const OpenBeamGeometry& geometry, const Image& flat) {
+  // The flat decides how much of the fall-off the panel shows (a real panel
+  // all of cos^3; a simulator may have none): the share s of the machine's
+  // cos^3 curvature, on a grid of 0 .. 2 by 0.05, refined by the parabola
+  // through the best point's neighbours; then the heel at that s. About
+  // 256^2 pixels are plenty.
+  const int step = std::max(1, std::max(flat.width(), flat.height()) / 256);
+  auto fitAt = [&](double share) {
+    OpenBeamGeometry g = geometry;
+    g.source_detector_distance_mm = falloffDistance(geometry.source_detector_distance_mm, share);
+    return std::pair{g, fitHeel(g, flat, step)};
+  };
+  constexpr int kShares = 41;
+  constexpr double kShareStep = 0.05;
+  std::array<double, kShares> residual{};
+  int best = 0;
+  for (int k = 0; k < kShares; ++k) {
+    residual[static_cast<size_t>(k)] = fitAt(k * kShareStep).second.residual;
+    if (residual[static_cast<size_t>(k)] < residual[static_cast<size_t>(best)]) best = k;
+  }
+  auto [chosen, heel] = fitAt(best * kShareStep);
+  if (best > 0 && best + 1 < kShares) {
+    const double r0 = residual[static_cast<size_t>(best - 1)],
+                 r1 = residual[static_cast<size_t>(best)],
+                 r2 = residual[static_cast<size_t>(best + 1)];
+    const double curvature = r0 - 2.0 * r1 + r2;
+    if (curvature > 0.0) {
+      const double share = (best + 0.5 * (r0 - r2) / curvature) * kShareStep;
+      auto [g, refined] = fitAt(share);
+      if (refined.residual < heel.residual) chosen = g, heel = refined;
+    }
+  }
+  return OpenBeamField(chosen, kHeelShare * heel.a, kHeelShare * heel.b);
+}
+
+OpenBeamField OpenBeamField::withHeelShare(double share) const {
+  OpenBeamField out = *this;
+  out.heel_u_ *= share / kHeelShare;
+  out.heel_v_ *= share / kHeelShare;
+  return out;
 }
 
 OpenBeamField OpenBeamField::fromFrames(const OpenBeamGeometry& geometry, const Image* dark,

@@ -187,7 +187,8 @@ TEST(HaloBorder, OpenBorderIsRemovedInTheOpenBeamsField) {
 }
 
 // A flat frame shaped cos^3 (1 + a x + b y) with dead and hot pixels: the
-// fit gives a and b back.
+// fit gives a and b back, the field half of them (the flat cannot tell the
+// tube's heel from the panel's gain), the whole at the heel's share 1.
 TEST(OpenBeamField, FitsTheFlatsHeel) {
   const OpenBeamGeometry geometry{400.0, 240.0, 200.0, 0.2, 0.2};
   const OpenBeamField truth(geometry, 2e-4, -1.5e-4);
@@ -195,9 +196,13 @@ TEST(OpenBeamField, FitsTheFlatsHeel) {
   for (float& v : flat.pixels()) v *= 3000.0f;
   for (int k = 0; k < 300; ++k) flat((k * 37) % 512, (k * 91) % 384) = k % 2 ? 0.0f : 20000.0f;
   const OpenBeamField fitted = OpenBeamField::fit(geometry, flat);
-  EXPECT_NEAR(fitted.heelUPerMm(), 2e-4, 1e-7);
-  EXPECT_NEAR(fitted.heelVPerMm(), -1.5e-4, 1e-7);
-  EXPECT_NEAR(fitted.at(10.0, 300.0), truth.at(10.0, 300.0), 1e-6);
+  EXPECT_NEAR(fitted.heelUPerMm(), 1e-4, 1e-7);
+  EXPECT_NEAR(fitted.heelVPerMm(), -0.75e-4, 1e-7);
+  const OpenBeamField all_heel = fitted.withHeelShare(1.0);
+  EXPECT_NEAR(all_heel.heelUPerMm(), 2e-4, 1e-7);
+  EXPECT_NEAR(all_heel.at(10.0, 300.0), truth.at(10.0, 300.0), 1e-6);
+  EXPECT_NEAR(fitted.withHeelShare(0.0).at(10.0, 300.0),
+              OpenBeamField(geometry, 0.0, 0.0).at(10.0, 300.0), 1e-6);
   EXPECT_TRUE(OpenBeamField().uniform());
   EXPECT_EQ(OpenBeamField().at(3.0, 4.0), 1.0);
   // The field over the plane for a narrow kernel: the blur of the field
@@ -209,6 +214,28 @@ TEST(OpenBeamField, FitsTheFlatsHeel) {
               1e-6);
   EXPECT_LT(static_cast<double>(blurred(0, 0)),
             static_cast<double>(truth.sampled(1, 1, 1.0)(0, 0)));
+}
+
+TEST(OpenBeamField, TheFlatDecidesHowMuchFallOffThePanelShows) {
+  // A flat with the heel but no fall-off (a simulator's): the field is the
+  // plane alone, not the machine's cos^3 (8 % down at this panel's corner).
+  const OpenBeamGeometry geometry{400.0, 240.0, 200.0, 0.2, 0.2};
+  Image flat(512, 384);
+  for (int v = 0; v < 384; ++v)
+    for (int u = 0; u < 512; ++u)
+      flat(u, v) = static_cast<float>(
+          3000.0 * (1.0 + 2e-4 * (u + 0.5 - 240.0) * 0.2 - 1.5e-4 * (v + 0.5 - 200.0) * 0.2));
+  const OpenBeamField fitted = OpenBeamField::fit(geometry, flat);
+  const double plane = 1.0 + 2e-4 * (0.5 - 240.0) * 0.2 - 1.5e-4 * (0.5 - 200.0) * 0.2;
+  const OpenBeamField all_heel = fitted.withHeelShare(1.0);
+  EXPECT_NEAR(all_heel.at(0.5, 0.5) / all_heel.at(240.0, 200.0), plane, 1e-5);
+  const OpenBeamField cosine(geometry, 2e-4, -1.5e-4);
+  EXPECT_LT(cosine.at(0.5, 0.5) / cosine.at(240.0, 200.0), plane - 0.02);
+  // Half the fall-off (the share 0.5, off the grid's best by its parabola).
+  const OpenBeamGeometry half{400.0 / std::sqrt(0.5), 240.0, 200.0, 0.2, 0.2};
+  const OpenBeamField fitted_half =
+      OpenBeamField::fit(geometry, OpenBeamField(half, 0.0, 0.0).sampled(512, 384, 1.0));
+  EXPECT_NEAR(fitted_half.at(0.5, 0.5), OpenBeamField(half, 0.0, 0.0).at(0.5, 0.5), 1e-5);
 }
 
 TEST(HaloBorder, GaussExpMatchesTheClosedFormKernelSummed) {

@@ -331,6 +331,31 @@ void normalisations(const InfluenceSource& source, InfluenceMoves& out) {
   }
 }
 
+// The share of the flat's slope that is the tube's heel (image/open_beam.h):
+// the flat cannot tell it from the panel's gain, and the halo sees only the
+// heel. One move of every radiograph's field (they share the machine's
+// flat).
+void openBeamHeel(const InfluenceSource& source, InfluenceMoves& out) {
+  const MeasurementInputs& inputs = source.inputs;
+  const bool sloped =
+      std::any_of(inputs.radiographs.begin(), inputs.radiographs.end(),
+                  [](const auto& radiograph) { return radiograph->open_beam.sloped(); });
+  if (!sloped || !inputs.job.scatter.enabled()) return;
+  const double u = OpenBeamField::kHeelShareUncertainty;
+  withInputs(source, out, Propagation::kLinearised, "open beam's heel",
+             fmt::format("share of the flat's slope that is the tube's heel, not the panel's gain: "
+                         "h = {:.2g} +- {:.2g}",
+                         OpenBeamField::kHeelShare, u),
+             "1", u, [u](MeasurementInputs& in, double amount) {
+               for (auto& radiograph : in.radiographs) {
+                 auto moved = std::make_shared<PreparedRadiograph>(*radiograph);
+                 moved->open_beam =
+                     moved->open_beam.withHeelShare(OpenBeamField::kHeelShare + amount * u);
+                 radiograph = std::move(moved);
+               }
+             });
+}
+
 // One influence quantity: the name of its components (NAME: a calibration
 // input's or a radiograph's) and what lists its moves of the model.
 struct InfluenceEntry {
@@ -343,6 +368,7 @@ constexpr InfluenceEntry kInfluences[] = {
     {"material: INPUT", curveMoves},  // the curve each calibration input moves
     {"material", materialRest},       // the rest of the curve's uncertainty
     {"scatter weight, scatter width", scatterComponents},
+    {"open beam's heel", openBeamHeel},
     {"source-detector distance, pixel pitch", machineGeometry},
     {"detector tilt about u and v, detector rotation", detectorPose},
     {"translation NAME", translations},

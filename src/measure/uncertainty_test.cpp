@@ -78,6 +78,9 @@ struct Scene {
   std::optional<Pose> rotated;
   std::string refine_material;
   double material_uncertainty = std::numeric_limits<double>::quiet_NaN();
+  // When not 0: dark and flat frames whose open beam slopes by this much
+  // per mm along u, the raw radiographs dark + I (flat - dark).
+  double flat_slope_per_mm = 0.0;
 };
 
 class Uncertainty : public ::testing::Test {
@@ -148,26 +151,50 @@ class Uncertainty : public ::testing::Test {
           image(x, y) = static_cast<float>(v);
         }
       if (name != "c") previous = image;
+      // With flat frames the lab adds the job's halo (in a uniform field).
+      if (s.flat_slope_per_mm != 0.0 && s.scatter)
+        image = s.scatter->apply(std::move(image), s.machine.pitch_u_mm);
+      if (s.flat_slope_per_mm != 0.0)
+        for (int y = 0; y < image.height(); ++y)
+          for (int x = 0; x < image.width(); ++x)
+            image(x, y) =
+                static_cast<float>(100.0 + static_cast<double>(image(x, y)) * openBeam(s, x));
       writeTiff(dir_ / (name + ".tif"), image, TiffFormat::kFloat32);
+    }
+    std::string frames;
+    if (s.flat_slope_per_mm != 0.0) {
+      Image dark(s.machine.columns, s.machine.rows, 100.0f), flat = dark;
+      for (int y = 0; y < flat.height(); ++y)
+        for (int x = 0; x < flat.width(); ++x)
+          flat(x, y) = static_cast<float>(100.0 + openBeam(s, x));
+      writeTiff(dir_ / "dark.tif", dark, TiffFormat::kFloat32);
+      writeTiff(dir_ / "flat.tif", flat, TiffFormat::kFloat32);
+      frames = R"(, "dark": "dark.tif", "flat": "flat.tif")";
     }
     std::ofstream(dir_ / "job.json") << R"({
       "part": ")" + s.part_file + R"(",
-      "machine": "machine.json", "material": "material.json", )" + job_scatter + R"(
+      "machine": "machine.json", "material": "material.json", )" +
+                                            job_scatter + R"(
       "dimensions": {"bounds": )" + s.dimension_bounds +
                                             R"(},
       "radiographs": [
-        {"name": "a", "image": "a.tif", "white_region": [2, 2, 20, 20], "pattern": "free"},
+        {"name": "a", "image": "a.tif", "white_region": [2, 2, 20, 20], "pattern": "free")" +
+                                            frames + R"(},
         {"name": "b", "image": "b.tif", "white_region": [2, 2, 20, 20], "pattern": "translated",
          "reference": "a", "distance_mm": 30.0, "distance_uncertainty_mm": 0.01)" +
+                                            frames +
                                             (s.previous_frame ? R"(, "previous": "a.tif")" : "") +
                                             R"(})" +
                                             (s.rotated ? R"(,
         {"name": "c", "image": "c.tif", "white_region": [2, 2, 20, 20], "pattern": "rotated",
-         "reference": "a"})"
+         "reference": "a")" + frames + "}"
                                                        : "") +
                                             R"(],
-      )" + (s.refine_material.empty() ? std::string()
-                                      : R"("refine_material": ")" + s.refine_material + "\",") +
+      )" +
+                                            (s.refine_material.empty()
+                                                 ? std::string()
+                                                 : R"("refine_material": ")" + s.refine_material +
+                                                       "\",") +
                                             R"(
       "pose_bounds": )" + s.bounds + R"(})";
     inputs_ = std::make_unique<MeasurementInputs>(loadMeasurementInputs(dir_ / "job.json"));
@@ -201,6 +228,12 @@ class Uncertainty : public ::testing::Test {
     least_squares_only.search_poses = false;
     least_squares_only.joint_search = false;
     return measure(*model_, theta, least_squares_only);
+  }
+
+  // The scene's open beam (ADU above the dark) at pixel column x.
+  static double openBeam(const Scene& s, int x) {
+    return 3000.0 *
+           (1.0 + s.flat_slope_per_mm * (x + 0.5 - s.machine.cx_px) * s.machine.pitch_u_mm);
   }
 
   static const UncertaintyComponent& component(const MeasurementResult& r, const std::string& dim,
@@ -560,6 +593,49 @@ TEST_F(Uncertainty, TheWhiteRegionsMeanIsAComponentOfItsOwn) {
   const MeasurementResult clean = measureScene(Scene{});
   for (const auto& d : clean.uncertainty.dimensions)
     for (const auto& c : d.components) EXPECT_NE(c.name.rfind("normalisation", 0), 0u) << c.name;
+}
+
+// A flat frame whose open beam slopes by 3 % across the panel: the flat
+// cannot say whether that is the tube's heel (which the halo spreads) or
+// the panel's gain (which it does not), the field carries half of it and
+// the budget's "open beam's heel" (u = 1 / sqrt(12) of the slope) predicts
+// how far each size moves when the field carries all of it. Without flat
+// frames the field is uniform and the budget has no such component.
+TEST_F(Uncertainty, TheFlatsSlopeThatMayBeTheHeelIsInTheBudget) {
+  Scene scene;
+  scene.scatter = ScatterModel{};
+  scene.scatter->weight = 0.15, scene.scatter->sigma_mm = 30.0;
+  scene.flat_slope_per_mm = 2.5e-4;
+  const MeasurementResult half = measureScene(scene);
+  for (const auto& radiograph : inputs_->radiographs)
+    EXPECT_NEAR(radiograph->open_beam.heelUPerMm(), 0.5 * scene.flat_slope_per_mm, 2e-6);
+  MeasurementInputs whole = *inputs_;
+  for (auto& radiograph : whole.radiographs) {
+    auto moved = std::make_shared<PreparedRadiograph>(*radiograph);
+    moved->open_beam = moved->open_beam.withHeelShare(1.0);
+    radiograph = std::move(moved);
+  }
+  ForwardModel all_heel(whole);
+  MeasureOptions least_squares_only;
+  least_squares_only.search_poses = false;
+  least_squares_only.joint_search = false;
+  const MeasurementResult moved = measure(all_heel, half.theta, least_squares_only);
+  double largest = 0.0;
+  for (size_t k = 0; k < half.dimensions.size(); ++k) {
+    const std::string& name = half.dimensions[k].name;
+    const UncertaintyComponent& heel = component(half, name, "open beam's heel");
+    EXPECT_NEAR(heel.standard_uncertainty, 1.0 / std::sqrt(12.0), 1e-12);
+    const double predicted = 0.5 * heel.sensitivity;
+    const double actual = moved.dimensions[k].value - half.dimensions[k].value;
+    EXPECT_NEAR(actual, predicted, 0.2 * std::abs(predicted) + 2e-4) << name;
+    largest = std::max(largest, std::abs(predicted));
+  }
+  EXPECT_GT(largest, 1e-3);  // the slope matters to the sizes
+  Scene uniform = scene;
+  uniform.flat_slope_per_mm = 0.0;
+  const MeasurementResult plain = measureScene(uniform);
+  for (const auto& d : plain.uncertainty.dimensions)
+    for (const auto& c : d.components) EXPECT_NE(c.name, "open beam's heel");
 }
 
 // A scatter the job takes from its material, whose file says how the curve

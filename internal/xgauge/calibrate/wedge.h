@@ -118,6 +118,8 @@ struct WedgeCalibrationJob {
 // The names of the scatter's two influences on the curve.
 inline constexpr const char* kScatterWeightInfluence = "scatter weight";
 inline constexpr const char* kScatterWidthInfluence = "scatter sigma_mm";
+// The share of the flat's slope that is the tube's heel (image/open_beam.h).
+inline constexpr const char* kOpenBeamHeelInfluence = "open beam's heel";
 
 struct CurveInfluence {
   std::string name;
@@ -166,6 +168,15 @@ struct WedgeCalibration {
   // table and curve.
   std::shared_ptr<const PartCalibrationJob> part_job;
   std::optional<PartCalibration> part;
+
+  // `radiograph` (normalized, before the scatter's removal, as the
+  // calibration read it) without a scatter of this weight and width in the
+  // open beam's field carrying `heel_share` of the flat's slope: the
+  // halo's removal (with its darkening) when it was estimated, else the
+  // scatter's. How the curve's uncertainty propagates the scatter's.
+  Image primaryWith(const Image& radiograph, double pitch_mm, const PixelRect& white_region,
+                    double weight, double sigma_mm,
+                    double heel_share = OpenBeamField::kHeelShare) const;
 };
 
 WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job);

@@ -96,6 +96,11 @@ struct EdgeHaloFit {
   // The upper and lower halves fitted on their own (the chosen shape): half
   // their difference is in the uncertainties too.
   std::array<double, 2> split_halves_weight{}, split_halves_equivalent_sigma_mm{};
+  // The chosen shape fitted again in a field whose heel's share of the
+  // flat's slope is moved by its standard uncertainty (image/open_beam.h):
+  // the weight's and the Gaussian-equivalent width's changes, in the
+  // uncertainties too (0 in a field without a slope).
+  double heel_share_weight_change = 0.0, heel_share_equivalent_sigma_change_mm = 0.0;
   // s: the misfit ratio times the square root of the residual correlation
   // (>= 1), by which the profile's chi2 is scaled.
   double noise_scale = 1.0;

@@ -33,17 +33,33 @@ class OpenBeamField {
   OpenBeamField(const OpenBeamGeometry& geometry, double heel_u_per_mm, double heel_v_per_mm)
       : geometry_(geometry), heel_u_(heel_u_per_mm), heel_v_(heel_v_per_mm) {}
 
-  // The cos^3 term of `geometry` times the heel plane whose a, b are fitted
-  // by least squares to `flat` (a flat frame minus its dark, full size)
-  // divided by the cos^3 term; pixels that are not positive and finite, or
-  // more than 5 % off the first fit (bad pixels), are left out. Throws Error
-  // when the flat has fewer than 100 such pixels.
+  // The field fitted to `flat` (a flat frame minus its dark, full size):
+  // how much of `geometry`'s cos^3 curvature the flat shows (a share s in
+  // 0 .. 2, the fall-off of a source at D / sqrt(s): a real panel shows
+  // s = 1, a simulator without fall-off 0), then the heel plane's a, b by
+  // least squares to the flat divided by that fall-off; pixels that are not
+  // positive and finite, or more than 5 % off the first fit (bad pixels),
+  // are left out. The field carries kHeelShare of that plane (below).
+  // Throws Error when the flat has fewer than 100 such pixels.
   static OpenBeamField fit(const OpenBeamGeometry& geometry, const Image& flat);
+
+  // A flat cannot tell the tube's heel (a slope of the X-rays, in the field
+  // the halo spreads) from a slope of the panel's gain (after the halo; the
+  // flat field divides it out and the halo never sees it). The share h of
+  // the flat's plane that is heel is taken as rectangular over 0 .. 1
+  // (GUM 4.3.7): the field carries its expectation, half the plane, and
+  // the budget moves h by its standard uncertainty 1 / sqrt(12).
+  static constexpr double kHeelShare = 0.5;
+  static constexpr double kHeelShareUncertainty = 0.28867513459481287;  // 1 / sqrt(12)
+  // This field with the share of the flat's plane it carries moved from
+  // kHeelShare to `share`.
+  OpenBeamField withHeelShare(double share) const;
   // fit() to flat - dark (dark null: flat as it is); uniform without a flat.
   static OpenBeamField fromFrames(const OpenBeamGeometry& geometry, const Image* dark,
                                   const Image* flat);
 
   bool uniform() const { return !geometry_; }
+  bool sloped() const { return heel_u_ != 0.0 || heel_v_ != 0.0; }
   double heelUPerMm() const { return heel_u_; }
   double heelVPerMm() const { return heel_v_; }
   // O at a continuous full-size pixel coordinate (1 when uniform).

@@ -71,12 +71,17 @@ def verify_master(args, lab, part, pattern, out, machine, material):
     if not vfile.exists():
         return None, {"reason": f"no {vfile}"}
     vjob = json.loads(vfile.read_text())
-    files = []
-    for m in vjob["measurements"]:
-        set_out = out / stem / Path(m).parent
-        prepare_job(args, mroot / m, set_out, machine, material)
-        files.append(str(set_out / "job.json"))
-    vjob["measurements"] = files
+
+    def prepared(jobs):
+        files = []
+        for m in jobs:
+            set_out = out / stem / Path(m).parent
+            prepare_job(args, mroot / m, set_out, machine, material)
+            files.append(str(set_out / "job.json"))
+        return files
+    # One master (its "measurements") or several (lab2 --master-specimens).
+    for master in vjob.get("masters", [vjob]):
+        master["measurements"] = prepared(master["measurements"])
     (out / f"verify_{stem}.json").write_text(json.dumps(vjob, indent=2))
     folder = out / f"verification_{stem}"
     rc, seconds = run([args.xgauge, "verify", str(out / f"verify_{stem}.json"), "-o", str(folder),

@@ -8,29 +8,33 @@
 
 #include <fmt/format.h>
 
-#include <cmath>
-
 namespace xgauge {
 
 namespace {
 
 // The table `xgauge verify` prints: per dimension the certified value, the
-// mean, bias, the standard uncertainties and the master's U.
+// mean, bias, the standard uncertainties and the U a workpiece the model
+// explains as well as the masters gets (u_w = 0; Student's k at its degrees
+// of freedom).
 std::string verificationTable(const Verification& verification) {
   std::string table =
-      fmt::format("{:<18} {:>10} {:>10} {:>9} {:>8} {:>8} {:>8} {:>9}\n", "dimension", "certified",
-                  "mean", "bias", "u_cal", "u_p", "u_b", "U master");
-  for (const VerifiedDimension& d : verification.dimensions)
-    table +=
-        fmt::format("{:<18} {:>10.4f} {:>10.4f} {:>+9.4f} {:>8.4f} {:>8.4f} {:>8.4f} {:>9.4f}\n",
-                    d.name, d.calibrated, d.mean, d.bias, d.u_cal, d.u_p, d.u_b,
-                    verification.coverage_factor *
-                        std::sqrt(d.u_cal * d.u_cal + d.u_p * d.u_p + d.u_b * d.u_b));
+      fmt::format("{:<18} {:>10} {:>10} {:>9} {:>8} {:>8} {:>8} {:>8} {:>9}\n", "dimension",
+                  "certified", "mean", "bias", "u_cal", "u_p", "u_s", "u_b", "U (k)");
+  for (const VerifiedDimension& d : verification.dimensions) {
+    const Substitution s = substitute(d.mean, d.own_master, d, verification.coverage_factor);
+    table += fmt::format(
+        "{:<18} {:>10.4f} {:>10.4f} {:>+9.4f} {:>8.4f} {:>8.4f} {:>8.4f} {:>8.4f} {:>9.4f} "
+        "({:.2f})\n",
+        d.name, d.calibrated, d.mean, d.bias, d.u_cal, d.u_p, d.u_s, d.u_b, s.expanded,
+        s.coverage_factor);
+  }
+  const int masters = verification.dimensions.empty() ? 1 : verification.dimensions[0].masters;
   table += fmt::format(
-      "{} measurements of the master; magnification {:.3f} .. {:.3f}. A workpiece's U adds its "
-      "own variation u_w (docs/method.md, \"Verification on a master\").\n",
-      verification.measurements.size(), verification.conditions.magnification[0],
-      verification.conditions.magnification[1]);
+      "{} measurements of {} master{}{}; magnification {:.3f} .. {:.3f}. A workpiece's U adds "
+      "its own variation u_w (docs/method.md, \"Verification on a master\").\n",
+      verification.measurements.size(), masters, masters == 1 ? "" : "s",
+      masters == 1 ? "" : " (certified and mean: averages over the masters)",
+      verification.conditions.magnification[0], verification.conditions.magnification[1]);
   return table;
 }
 

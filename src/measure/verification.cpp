@@ -29,14 +29,18 @@ nlohmann::json Verification::toJson() const {
                     {"u_cal", d.u_cal},
                     {"u_p", d.u_p},
                     {"u_b", d.u_b},
+                    {"masters", d.masters},
+                    {"u_s", d.u_s},
                     {"own_standard_uncertainty", d.own_master}});
   nlohmann::json record = nlohmann::json::array();
   for (const MasterMeasurement& m : measurements) {
     nlohmann::json values = nlohmann::json::object();
     for (const auto& [name, yu] : m.dimensions)
       values[name] = {{"value", yu.first}, {"own_standard_uncertainty", yu.second}};
-    record.push_back(
-        {{"job", m.job}, {"dimensions", values}, {"magnifications", m.magnifications}});
+    record.push_back({{"job", m.job},
+                      {"master", m.master + 1},
+                      {"dimensions", values},
+                      {"magnifications", m.magnifications}});
   }
   const VerificationConditions& c = conditions;
   return {{"kind", "verification"},
@@ -89,6 +93,10 @@ Verification Verification::fromConfig(const ConfigNode& root, const std::filesys
     out.u_p = d.at("u_p").number(0.0, 1e3);
     out.u_b = d.at("u_b").number(0.0, 1e3);
     out.own_master = d.at("own_standard_uncertainty").number(0.0, 1e3);
+    // Files from before several masters: one master, no u_s.
+    if (auto masters = d.find("masters"))
+      out.masters = static_cast<int>(masters->integer(1, out.measurements));
+    if (auto u_s = d.find("u_s")) out.u_s = u_s->number(0.0, 1e3);
     if (std::abs(out.mean - out.calibrated - out.bias) > 1e-9 * (1.0 + std::abs(out.mean)))
       d.at("bias").fail(
           fmt::format("is not mean - calibrated ({} - {})", out.mean, out.calibrated));
@@ -100,6 +108,8 @@ Verification Verification::fromConfig(const ConfigNode& root, const std::filesys
   for (size_t k = 0; k < record.size(); ++k) {
     MasterMeasurement measured;
     measured.job = record[k].at("job").string();
+    if (auto master = record[k].find("master"))
+      measured.master = static_cast<int>(master->integer(1, 1000000)) - 1;
     const ConfigNode values = record[k].at("dimensions");
     for (const std::string& name : values.keys())
       measured.dimensions[name] = {values.at(name).at("value").number(),
@@ -115,10 +125,87 @@ Verification Verification::fromConfig(const ConfigNode& root, const std::filesys
 Verification verifyOnMaster(const std::vector<MasterMeasurement>& measurements,
                             const std::map<std::string, CertifiedValue>& certificate,
                             VerificationConditions conditions) {
+  std::vector<MasterMeasurement> one = measurements;
+  for (MasterMeasurement& m : one) m.master = 0;
+  return verifyOnMasters(one, {certificate}, std::move(conditions));
+}
+
+namespace {
+
+double sampleVariance(const std::vector<double>& values, double mean) {
+  double squares = 0.0;
+  for (double v : values) squares += (v - mean) * (v - mean);
+  return squares / static_cast<double>(values.size() - 1);
+}
+
+double meanOf(const std::vector<double>& values) {
+  double sum = 0.0;
+  for (double v : values) sum += v;
+  return sum / static_cast<double>(values.size());
+}
+
+// One dimension over the masters (the header's equations); y[j] master j's
+// values, own the measurements' own combined standard uncertainties.
+VerifiedDimension verifiedOver(const std::string& name, const std::vector<std::vector<double>>& y,
+                               const std::vector<CertifiedValue>& certified,
+                               const std::vector<double>& own) {
+  VerifiedDimension d;
+  d.name = name;
+  d.masters = static_cast<int>(y.size());
+  std::vector<double> means, calibrated, u_cal2;
+  double within = 0.0, inverse_n = 0.0;
+  int n = 0;
+  for (size_t j = 0; j < y.size(); ++j) {
+    const double mean = meanOf(y[j]);
+    means.push_back(mean);
+    calibrated.push_back(certified[j].value);
+    u_cal2.push_back(certified[j].standard_uncertainty * certified[j].standard_uncertainty);
+    for (double v : y[j]) within += (v - mean) * (v - mean);
+    inverse_n += 1.0 / static_cast<double>(y[j].size()) / static_cast<double>(y.size());
+    n += static_cast<int>(y[j].size());
+  }
+  d.measurements = n;
+  d.mean = meanOf(means);
+  d.calibrated = meanOf(calibrated);
+  d.bias = d.mean - d.calibrated;
+  d.u_cal = std::sqrt(meanOf(u_cal2));
+  d.own_master = meanOf(own);
+  if (d.masters == 1) {
+    d.u_p = std::sqrt(within / (n - 1));
+    d.u_b = d.u_p / std::sqrt(static_cast<double>(n));
+    return d;
+  }
+  std::vector<double> biases;
+  for (size_t j = 0; j < y.size(); ++j) biases.push_back(means[j] - calibrated[j]);
+  const double between = sampleVariance(biases, d.bias);
+  d.u_b = std::sqrt(between / d.masters);
+  if (n == d.masters) {
+    d.u_p = std::sqrt(between);
+  } else {
+    d.u_p = std::sqrt(within / (n - d.masters));
+    d.u_s = std::sqrt(std::max(0.0, between - d.u_p * d.u_p * inverse_n));
+  }
+  return d;
+}
+
+}  // namespace
+
+Verification verifyOnMasters(const std::vector<MasterMeasurement>& measurements,
+                             const std::vector<std::map<std::string, CertifiedValue>>& certificates,
+                             VerificationConditions conditions) {
   const auto n = static_cast<int>(measurements.size());
   if (n < kMinVerificationMeasurements)
-    fail("a verification needs at least {} measurements of the master, got {}",
+    fail("a verification needs at least {} measurements of its masters, got {}",
          kMinVerificationMeasurements, n);
+  const size_t masters = certificates.size();
+  std::vector<int> per_master(masters, 0);
+  for (const MasterMeasurement& m : measurements) {
+    if (m.master < 0 || static_cast<size_t>(m.master) >= masters)
+      fail("{}: master {} has no certificate (there are {})", m.job, m.master + 1, masters);
+    ++per_master[static_cast<size_t>(m.master)];
+  }
+  for (size_t j = 0; j < masters; ++j)
+    if (per_master[j] == 0) fail("master {} of {} has no measurement", j + 1, masters);
   Verification v;
   double lo = std::numeric_limits<double>::infinity(), hi = -lo;
   for (const MasterMeasurement& m : measurements)
@@ -127,33 +214,25 @@ Verification verifyOnMaster(const std::vector<MasterMeasurement>& measurements,
   conditions.magnification = {lo, hi};
   v.conditions = std::move(conditions);
   v.measurements = measurements;
-  for (const auto& [name, certified] : certificate) {
-    std::vector<double> y, own;
+  for (const auto& [name, first] : certificates.front()) {
+    std::vector<CertifiedValue> certified;
+    for (const auto& certificate : certificates)
+      if (const auto it = certificate.find(name); it != certificate.end())
+        certified.push_back(it->second);
+    if (certified.size() < masters) continue;  // not certified on every master
+    std::vector<std::vector<double>> y(masters);
+    std::vector<double> own;
     for (const MasterMeasurement& m : measurements)
       if (const auto it = m.dimensions.find(name); it != m.dimensions.end())
-        y.push_back(it->second.first), own.push_back(it->second.second);
-    if (static_cast<int>(y.size()) < n) continue;  // not measured every time
-    VerifiedDimension d;
-    d.name = name;
-    d.measurements = n;
-    d.calibrated = certified.value;
-    d.u_cal = certified.standard_uncertainty;
-    double sum = 0.0, sum_own = 0.0;
-    for (int i = 0; i < n; ++i)
-      sum += y[static_cast<size_t>(i)], sum_own += own[static_cast<size_t>(i)];
-    d.mean = sum / n;
-    d.own_master = sum_own / n;
-    double squares = 0.0;
-    for (double v_i : y) squares += (v_i - d.mean) * (v_i - d.mean);
-    d.u_p = std::sqrt(squares / (n - 1));
-    d.u_b = d.u_p / std::sqrt(static_cast<double>(n));
-    d.bias = d.mean - d.calibrated;
-    v.dimensions.push_back(std::move(d));
+        y[static_cast<size_t>(m.master)].push_back(it->second.first),
+            own.push_back(it->second.second);
+    if (static_cast<int>(own.size()) < n) continue;  // not measured every time
+    v.dimensions.push_back(verifiedOver(name, y, certified, own));
   }
   if (v.dimensions.empty())
     fail(
-        "no certified dimension of the master was measured in every one of its {} measurements "
-        "(a dimension must be free in the master's jobs to be verified)",
+        "no dimension certified on every master was measured in every one of the {} "
+        "measurements (a dimension must be free in the masters' jobs to be verified)",
         n);
   return v;
 }
@@ -164,12 +243,21 @@ Substitution substitute(double measured, double own_combined, const VerifiedDime
   s.value = measured - verified.bias;
   s.u_w = std::sqrt(
       std::max(0.0, own_combined * own_combined - verified.own_master * verified.own_master));
-  const double repeated = verified.u_p * verified.u_p + verified.u_b * verified.u_b;
-  s.combined = std::sqrt(verified.u_cal * verified.u_cal + repeated + s.u_w * s.u_w);
+  const double p2 = verified.u_p * verified.u_p,
+               between = verified.u_s * verified.u_s + verified.u_b * verified.u_b;
+  s.combined = std::sqrt(verified.u_cal * verified.u_cal + p2 + between + s.u_w * s.u_w);
   const double u4 = s.combined * s.combined * s.combined * s.combined;
-  s.effective_dof = repeated > 0.0 && verified.measurements > 1
-                        ? u4 / (repeated * repeated / (verified.measurements - 1))
-                        : std::numeric_limits<double>::infinity();
+  // Welch-Satterthwaite over the estimates (the header): one where u_p and
+  // u_b are the same estimate, two where the masters were measured again.
+  const int n = verified.measurements, m = verified.masters;
+  double denominator = 0.0;
+  if (m <= 1 && n > 1)
+    denominator = (p2 + between) * (p2 + between) / (n - 1);
+  else if (m > 1 && n == m)
+    denominator = (p2 + between) * (p2 + between) / (m - 1);
+  else if (m > 1)
+    denominator = p2 * p2 / (n - m) + between * between / (m - 1);
+  s.effective_dof = denominator > 0.0 ? u4 / denominator : std::numeric_limits<double>::infinity();
   s.coverage_factor = studentCoverageFactor(s.effective_dof, normal_coverage_factor);
   s.expanded = s.coverage_factor * s.combined;
   return s;

@@ -2,14 +2,20 @@
 // example computed by hand, the verification file's round trip, and the
 // refusals outside its conditions.
 #include "xgauge/measure/verification.h"
+#include "xgauge/measure/verify.h"
 
 #include "xgauge/core/error.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <filesystem>
+#include <fstream>
 #include <limits>
 #include <string>
+
+#include <unistd.h>
 
 namespace xgauge {
 namespace {
@@ -38,7 +44,7 @@ std::vector<MasterMeasurement> fourMeasurements() {
   std::vector<MasterMeasurement> out;
   for (int i = 0; i < 4; ++i) {
     MasterMeasurement m;
-    m.job = "m" + std::to_string(i) + ".json";
+    m.job = fmt::format("m{}.json", i);
     m.dimensions["width"] = {y[i], own[i]};
     m.dimensions["not_certified"] = {1.0, 0.1};
     m.magnifications = {magnification[i], magnification[i] + 0.005};
@@ -139,6 +145,129 @@ TEST(Verification, IsRefusedOutsideItsConditions) {
   EXPECT_NE(refusal(a, b, c, {2.0, 2.08}).find("magnification 2.080 lies outside"),
             std::string::npos);
   EXPECT_NE(refusal(a, b, c, {1.95}).find("lies outside"), std::string::npos);
+}
+
+// Three masters certified at 10.000, 10.050 and 9.980 mm (u_cal 0.001,
+// 0.002, 0.002 mm), each measured twice:
+//   master 1: 10.010, 10.014  (biases 0.010, 0.014; mean 0.012)
+//   master 2: 10.054, 10.056  (biases 0.004, 0.006; mean 0.005)
+//   master 3:  9.998, 10.000  (biases 0.018, 0.020; mean 0.019)
+// By hand:
+//   b = (0.012 + 0.005 + 0.019) / 3 = 0.012
+//   s_B^2 = (0 + 49e-6 + 49e-6) / 2 = 49e-6;  u_b = 0.007 / sqrt(3) = 0.00404145
+//   within: master 1's values 0.002 from their mean, 2's and 3's 0.001:
+//   squares 2 x 4e-6 + 4 x 1e-6 = 12e-6 over N - M = 3: u_p^2 = 4e-6,
+//   u_p = 0.002
+//   u_s^2 = 49e-6 - 4e-6 x mean(1/2) = 47e-6;  u_s = 0.00685565
+//   u_cal = sqrt((1e-6 + 4e-6 + 4e-6) / 3) = sqrt(3e-6) = 0.00173205
+// A workpiece with the masters' own u (u_w = 0):
+//   u^2 = 3e-6 + 4e-6 + 47e-6 + 49e-6 / 3 = 70.3333e-6;  u = 0.00838650
+//   nu = u^4 / (u_p^4 / 3 + (u_s^2 + u_b^2)^2 / 2)
+//      = 4946.78e-12 / (5.3333e-12 + 2005.56e-12) = 2.46000
+// The same values as six masters measured once each: u_p = s of the six
+// biases (0.010, 0.014, 0.004, 0.006, 0.018, 0.020; mean 0.012; squares
+// 4 + 4 + 64 + 36 + 36 + 64 = 208e-6 over 5: 41.6e-6), u_b = u_p / sqrt(6),
+// u_s = 0, nu = u^4 / ((u_p^2 + u_b^2)^2 / 5).
+TEST(Verification, SeveralMastersMeasureTheSpecimensOwnVariation) {
+  const double y[] = {10.010, 10.014, 10.054, 10.056, 9.998, 10.000};
+  std::vector<MasterMeasurement> measured;
+  for (int i = 0; i < 6; ++i) {
+    MasterMeasurement m;
+    m.job = fmt::format("m{}.json", i);
+    m.master = i / 2;
+    m.dimensions["width"] = {y[i], 0.004};
+    m.magnifications = {2.0};
+    measured.push_back(m);
+  }
+  const std::vector<std::map<std::string, CertifiedValue>> three = {
+      {{"width", {10.000, 0.001}}}, {{"width", {10.050, 0.002}}}, {{"width", {9.980, 0.002}}}};
+  const Verification v = verifyOnMasters(measured, three, someConditions());
+  ASSERT_EQ(v.dimensions.size(), 1u);
+  const VerifiedDimension& d = v.dimensions.front();
+  EXPECT_EQ(d.masters, 3);
+  EXPECT_EQ(d.measurements, 6);
+  EXPECT_NEAR(d.bias, 0.012, 1e-12);
+  EXPECT_NEAR(d.u_b, 0.0040414519, 1e-9);
+  EXPECT_NEAR(d.u_p, 0.002, 1e-12);
+  EXPECT_NEAR(d.u_s, 0.0068556546, 1e-9);
+  EXPECT_NEAR(d.u_cal, 0.0017320508, 1e-9);
+  const Substitution s = substitute(10.030, 0.004, d, 2.0);
+  EXPECT_NEAR(s.value, 10.018, 1e-12);
+  EXPECT_EQ(s.u_w, 0.0);
+  EXPECT_NEAR(s.combined, 0.0083864971, 1e-9);
+  EXPECT_NEAR(s.effective_dof, 2.4599956, 1e-6);
+  EXPECT_NEAR(s.expanded, studentCoverageFactor(s.effective_dof, 2.0) * s.combined, 1e-15);
+  // The file keeps the masters and u_s.
+  const Verification back = Verification::fromConfig(
+      ConfigNode::fromJson(v.toJson(), "verification.json"), "verification.json");
+  EXPECT_EQ(back.dimensions[0].masters, 3);
+  EXPECT_EQ(back.dimensions[0].u_s, d.u_s);
+  EXPECT_EQ(back.measurements[5].master, 2);
+
+  // Six masters measured once each.
+  std::vector<std::map<std::string, CertifiedValue>> six;
+  for (int i = 0; i < 6; ++i) {
+    measured[static_cast<size_t>(i)].master = i;
+    six.push_back(three[static_cast<size_t>(i / 2)]);
+  }
+  const VerifiedDimension once = verifyOnMasters(measured, six, someConditions()).dimensions[0];
+  EXPECT_NEAR(once.u_p, std::sqrt(41.6e-6), 1e-12);
+  EXPECT_NEAR(once.u_b, std::sqrt(41.6e-6 / 6.0), 1e-12);
+  EXPECT_EQ(once.u_s, 0.0);
+  const Substitution t = substitute(10.030, 0.004, once, 2.0);
+  const double repeated = 41.6e-6 * (1.0 + 1.0 / 6.0);
+  EXPECT_NEAR(t.effective_dof, std::pow(t.combined, 4) / (repeated * repeated / 5.0), 1e-9);
+
+  // A master without a measurement, or a measurement without a master.
+  EXPECT_THROW(verifyOnMasters(measured, {three[0]}, someConditions()), Error);
+  std::vector<MasterMeasurement> first_two(measured.begin(), measured.begin() + 4);
+  EXPECT_THROW(verifyOnMasters(first_two, six, someConditions()), Error);
+}
+
+// The job names one master ("master" and "measurements") or several
+// ("masters", each with its own); either, not both; three jobs in all.
+TEST(Verification, TheJobNamesOneMasterOrSeveral) {
+  const auto dir =
+      std::filesystem::temp_directory_path() / ("xgauge_verify_job_" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  auto load = [&](const nlohmann::json& text) {
+    std::ofstream(dir / "verify.json") << text.dump();
+    return VerificationJob::load(dir / "verify.json");
+  };
+  const nlohmann::json certificate = {
+      {"width", {{"value", 10.0}, {"standard_uncertainty", 0.002}}}};
+  auto master = [&](const std::vector<std::string>& jobs) {
+    return nlohmann::json{{"certificate", certificate}, {"measurements", jobs}};
+  };
+  const VerificationJob several =
+      load({{"masters", {master({"a.json", "b.json"}), master({"c.json"})}}});
+  ASSERT_EQ(several.masters.size(), 2u);
+  EXPECT_EQ(several.masters[1].measurements.front(), dir / "c.json");
+  EXPECT_EQ(several.masters[0].certificate.at("width").value, 10.0);
+  const nlohmann::json single = {{"master", {{"certificate", certificate}}},
+                                 {"measurements", {"a.json", "b.json", "c.json"}}};
+  EXPECT_EQ(load(single).masters.size(), 1u);
+  auto message = [&](const nlohmann::json& text) {
+    try {
+      load(text);
+    } catch (const Error& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  nlohmann::json both = single;
+  both["masters"] = {master({"d.json"})};
+  EXPECT_NE(message(both).find("either"), std::string::npos);
+  EXPECT_NE(message({{"masters", {master({"a.json"}), master({"b.json"})}}}).find("at least 3"),
+            std::string::npos);
+  EXPECT_NE(message({{"masters", {master({}), master({"a.json", "b.json", "c.json"})}}})
+                .find("at least one measurement"),
+            std::string::npos);
+  nlohmann::json misspelled = {{"masters", {master({"a.json", "b.json", "c.json"})}}};
+  misspelled["masters"][0]["measurments"] = misspelled["masters"][0]["measurements"];
+  misspelled["masters"][0].erase("measurements");
+  EXPECT_NE(message(misspelled).find("measurements"), std::string::npos);
+  std::filesystem::remove_all(dir);
 }
 
 TEST(Verification, NeedsEnoughMeasurementsAndACertifiedDimension) {

@@ -11,43 +11,80 @@
 
 namespace xgauge {
 
+namespace {
+
+// A master's certificate: a CMM's, or a virtual lab's truth with one u.
+std::map<std::string, CertifiedValue> certificateOf(const ConfigNode& master,
+                                                    const std::filesystem::path& folder) {
+  std::map<std::string, CertifiedValue> out;
+  if (master.has("certificate") == master.has("truth"))
+    master.fail("expected either \"certificate\" (a CMM's) or \"truth\" (a virtual lab's)");
+  if (auto certificate = master.find("certificate")) {
+    for (const std::string& name : certificate->keys()) {
+      const ConfigNode c = certificate->at(name);
+      out[name] = {c.at("value").number(), c.at("standard_uncertainty").number(0.0, 1e3)};
+    }
+  } else {
+    const DatasetTruth truth = DatasetTruth::load(folder / master.at("truth").string());
+    const double u = master.at("standard_uncertainty").number(0.0, 1e3);
+    for (const auto& [name, value] : truth.dimensions) out[name] = {value, u};
+  }
+  if (out.empty()) master.fail("the master's certificate names no dimension");
+  return out;
+}
+
+std::vector<std::filesystem::path> jobsOf(const ConfigNode& measurements,
+                                          const std::filesystem::path& folder) {
+  std::vector<std::filesystem::path> out;
+  for (size_t k = 0; k < measurements.size(); ++k) out.push_back(folder / measurements[k].string());
+  if (out.empty()) measurements.fail("a master needs at least one measurement");
+  return out;
+}
+
+}  // namespace
+
 VerificationJob VerificationJob::load(const std::filesystem::path& file) {
   const ConfigNode root = ConfigNode::loadFile(file);
   const std::filesystem::path folder = file.parent_path();
   VerificationJob job;
   job.file = file;
   job.description = root.get<std::string>("description", "");
-  const ConfigNode master = root.at("master");
-  if (master.has("certificate") == master.has("truth"))
-    master.fail("expected either \"certificate\" (a CMM's) or \"truth\" (a virtual lab's)");
-  if (auto certificate = master.find("certificate")) {
-    for (const std::string& name : certificate->keys()) {
-      const ConfigNode c = certificate->at(name);
-      job.certificate[name] = {c.at("value").number(),
-                               c.at("standard_uncertainty").number(0.0, 1e3)};
-    }
+  if (root.has("master") == root.has("masters"))
+    root.fail("expected either \"master\" with \"measurements\", or \"masters\"");
+  size_t count = 0;
+  if (auto master = root.find("master")) {
+    job.masters.push_back(
+        {certificateOf(*master, folder), jobsOf(root.at("measurements"), folder)});
   } else {
-    const DatasetTruth truth = DatasetTruth::load(folder / master.at("truth").string());
-    const double u = master.at("standard_uncertainty").number(0.0, 1e3);
-    for (const auto& [name, value] : truth.dimensions) job.certificate[name] = {value, u};
+    const ConfigNode masters = root.at("masters");
+    if (masters.size() == 0) masters.fail("expected at least one master");
+    for (size_t j = 0; j < masters.size(); ++j) {
+      const ConfigNode m = masters[j];
+      job.masters.push_back({certificateOf(m, folder), jobsOf(m.at("measurements"), folder)});
+    }
   }
-  if (job.certificate.empty()) master.fail("the master's certificate names no dimension");
-  const ConfigNode measurements = root.at("measurements");
-  for (size_t k = 0; k < measurements.size(); ++k)
-    job.measurements.push_back(folder / measurements[k].string());
-  if (static_cast<int>(job.measurements.size()) < kMinVerificationMeasurements)
-    measurements.fail(fmt::format("a verification needs at least {} measurements of the master",
-                                  kMinVerificationMeasurements));
+  for (const Master& m : job.masters) count += m.measurements.size();
+  if (static_cast<int>(count) < kMinVerificationMeasurements)
+    root.fail(fmt::format("a verification needs at least {} measurements of its masters, got {}",
+                          kMinVerificationMeasurements, count));
   root.finish();
   return job;
 }
 
 Verification verifyMethod(const VerificationJob& job) {
   std::vector<MasterMeasurement> measured;
+  std::vector<std::map<std::string, CertifiedValue>> certificates;
+  std::vector<std::pair<int, std::filesystem::path>> jobs;
+  for (size_t j = 0; j < job.masters.size(); ++j) {
+    certificates.push_back(job.masters[j].certificate);
+    for (const std::filesystem::path& file : job.masters[j].measurements)
+      jobs.emplace_back(static_cast<int>(j), file);
+  }
   VerificationConditions conditions;
-  for (size_t k = 0; k < job.measurements.size(); ++k) {
-    const std::filesystem::path& file = job.measurements[k];
-    spdlog::info("master measurement {} of {}: {}", k + 1, job.measurements.size(), file.string());
+  for (size_t k = 0; k < jobs.size(); ++k) {
+    const auto& [master, file] = jobs[k];
+    spdlog::info("master {} of {}, measurement {} of {}: {}", master + 1, job.masters.size(), k + 1,
+                 jobs.size(), file.string());
     const MeasurementInputs inputs = loadMeasurementInputs(file);
     if (inputs.verification)
       fail("{}: a measurement of the master names a verification of its own; verify without it",
@@ -75,6 +112,7 @@ Verification verifyMethod(const VerificationJob& job) {
            file.string(), result.check.failures.front());
     MasterMeasurement m;
     m.job = file.string();
+    m.master = master;
     for (const MeasuredDimension& d : result.dimensions) {
       if (!d.free) continue;
       for (const DimensionUncertainty& u : result.uncertainty.dimensions)
@@ -84,7 +122,7 @@ Verification verifyMethod(const VerificationJob& job) {
       m.magnifications.push_back(r.magnification);
     measured.push_back(std::move(m));
   }
-  return verifyOnMaster(measured, job.certificate, std::move(conditions));
+  return verifyOnMasters(measured, certificates, std::move(conditions));
 }
 
 }  // namespace xgauge

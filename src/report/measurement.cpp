@@ -56,6 +56,8 @@ nlohmann::json dimensionJson(const ForwardModel& model, const MeasuredDimension&
         {"u_cal", v->u_cal},
         {"u_p", v->u_p},
         {"u_b", v->u_b},
+        {"masters", v->masters},
+        {"u_s", v->u_s},
         {"u_w", s->u_w},
         {"combined_standard_uncertainty", s->combined},
         {"effective_degrees_of_freedom", std::isfinite(s->effective_dof)

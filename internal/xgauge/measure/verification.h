@@ -41,6 +41,29 @@
 // grew by. The rest of the own budget (the curve, the distances, the noise)
 // is what b and u_p measured on the master, and is not counted twice.
 //
+// Several masters (specimens of the part type, each with its certificate,
+// M >= 2) also measure what one cannot: how much the method's bias varies
+// from specimen to specimen (their form deviations, chamfers, fillets and
+// drilled holes differ, and the method sees each a little differently).
+// With the biases b_ji = y_ji - x_cal,j of master j's n_j measurements,
+// their means bbar_j and N = sum n_j:
+//
+//   b   = mean_j(bbar_j)                    the method's bias over masters
+//   s_B = s(bbar_j)  (M - 1 in the denominator)
+//   u_b = s_B / sqrt(M)                      the uncertainty of b
+//   N > M:  u_p = the pooled standard deviation within masters (N - M
+//           degrees of freedom), u_s^2 = max(0, s_B^2 - u_p^2 mean_j(1/n_j))
+//           the specimens' own variation of the bias
+//   N = M:  u_p = s_B (one measurement per master: repeatability and the
+//           specimens' variation together), u_s = 0
+//
+// and u gains u_s^2: u = sqrt(u_cal^2 + u_p^2 + u_s^2 + u_b^2 + u_w^2),
+// u_cal the root mean square of the masters' certificates (not divided by
+// sqrt(M): a conservative bound on their share of b). For
+// Welch-Satterthwaite the estimates from s_B have M - 1 degrees of
+// freedom, the pooled u_p N - M; where u_p and u_b are the same estimate
+// (one master, or one measurement per master) they count as one.
+//
 // A verification holds only for the conditions it was made under: the part
 // model, the machine and the material (their files' SHA-256: the same bytes),
 // and the range of magnifications of the master's radiographs (the part's
@@ -82,6 +105,8 @@ struct VerifiedDimension {
   double u_p = 0.0;         // repeatability
   double u_b = 0.0;         // of b
   double own_master = 0.0;  // mean own combined standard uncertainty on the master
+  int masters = 1;          // M
+  double u_s = 0.0;         // the specimens' own variation of the bias (M >= 2)
 };
 
 struct VerificationConditions {
@@ -94,6 +119,7 @@ struct VerificationConditions {
 // combined standard uncertainty, and the magnification of each radiograph.
 struct MasterMeasurement {
   std::string job;  // the measurement job's file, for the record
+  int master = 0;   // which master (an index into the certificates)
   std::map<std::string, std::pair<double, double>> dimensions;  // name -> (y, u_own)
   std::vector<double> magnifications;
 };
@@ -117,6 +143,13 @@ struct Verification {
 Verification verifyOnMaster(const std::vector<MasterMeasurement>& measurements,
                             const std::map<std::string, CertifiedValue>& certificate,
                             VerificationConditions conditions);
+// The same over several masters: certificates[j] is master j's, each
+// measurement names its master (MasterMeasurement::master); every master
+// needs at least one measurement, and a dimension is verified where every
+// certificate names it and every measurement gives it.
+Verification verifyOnMasters(const std::vector<MasterMeasurement>& measurements,
+                             const std::vector<std::map<std::string, CertifiedValue>>& certificates,
+                             VerificationConditions conditions);
 
 // A workpiece's dimension by substitution (the header's equations).
 struct Substitution {

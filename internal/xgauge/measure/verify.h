@@ -24,11 +24,17 @@ namespace xgauge {
 //                 every dimension of the lab's part, each with u
 //   measurements  at least kMinVerificationMeasurements measurement jobs of the master
 //                 (measure/job.h), each naming no verification of its own
+// or, for several masters (verification.h):
+//   masters       [{certificate or truth as "master" has, "measurements": [at least
+//                 one job]}, ...], at least kMinVerificationMeasurements jobs in all
 struct VerificationJob {
+  struct Master {
+    std::map<std::string, CertifiedValue> certificate;
+    std::vector<std::filesystem::path> measurements;
+  };
   std::filesystem::path file;
   std::string description;
-  std::map<std::string, CertifiedValue> certificate;
-  std::vector<std::filesystem::path> measurements;
+  std::vector<Master> masters;
   static VerificationJob load(const std::filesystem::path& file);
 };
 

@@ -32,6 +32,8 @@ def main(argv=None):
     s.add_argument("--machines", default=",".join(grid.SUITE), help=f"comma-separated ids (default: {','.join(grid.SUITE)})")
     s.add_argument("--parts", default="prism,wedge,bracket,shaft")
     s.add_argument("--masters", type=int, default=3, help="master shot sets per part (default 3)")
+    s.add_argument("--master-specimens", type=int, default=1, help="master specimens per part, each drawn on its "
+                                                                  "own with --masters shot sets (default 1)")
     s.add_argument("--runs", type=int, default=1, help="runs per machine, each with its own seed (machine seed + "
                                                       "7919 k) and so its own draws (default 1)")
     s.add_argument("--frames", type=int, default=4, help="frames in the dark and flat series (default 4)")
@@ -74,7 +76,7 @@ def main(argv=None):
         if getattr(a, "frames", None):
             cfg["frames"] = {"darks": a.frames, "flats": a.frames}
         out = os.path.join(a.output, f"run{k:02d}", cfg["id"]) if runs > 1 else os.path.join(a.output, cfg["id"])
-        tasks.append((cfg, out, getattr(a, "imperfections", True), parts, a.masters))
+        tasks.append((cfg, out, getattr(a, "imperfections", True), parts, a.masters, a.master_specimens))
     jobs = max(1, int(getattr(a, "jobs", 1) or 1))
     if jobs == 1:
         for task in tasks:
@@ -89,9 +91,10 @@ def main(argv=None):
 
 def _one(task):
     from .session import Machine, Session
-    cfg, out, imperfections, parts, masters = task
+    cfg, out, imperfections, parts, masters, specimens = task
     t, c = time.time(), time.process_time()
-    truth = Session(Machine(cfg), out, imperfections=imperfections, parts=parts, masters=masters).run()
+    truth = Session(Machine(cfg), out, imperfections=imperfections, parts=parts, masters=masters,
+                    master_specimens=specimens).run()
     summary = {k: round(v, 1) for k, v in truth["timings_s"].items()}
     return f"{cfg['id']}: {out} in {time.time() - t:.1f} s, {time.process_time() - c:.1f} s CPU ({summary})"
 
@@ -100,6 +103,8 @@ def _parts_args(s):
     s.add_argument("--parts", default="", help="comma-separated measured parts (prism, wedge, bracket, shaft) with "
                                                "their master sets, under measured/")
     s.add_argument("--masters", type=int, default=3, help="master shot sets per part (default 3)")
+    s.add_argument("--master-specimens", type=int, default=1, help="master specimens per part, each drawn on its "
+                                                                  "own with --masters shot sets (default 1)")
 
 
 def _render(a):

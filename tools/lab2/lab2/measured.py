@@ -65,11 +65,12 @@ def stage_axis(rng):
 
 
 class PartRun:
-    def __init__(self, sess, kind, n_master=3):
+    def __init__(self, sess, kind, n_master=3, n_specimens=1):
         self.s = sess
         self.m = sess.m
         self.kind = kind
-        self.n_master = n_master
+        self.n_master = n_master  # shot sets per master specimen
+        self.n_specimens = max(1, int(n_specimens))  # master specimens, each drawn on its own
         self.pm = physical.model(kind)
         self.root_dir = os.path.join(sess.out, "measured")
         self.longest = 0.0
@@ -99,16 +100,26 @@ class PartRun:
         M = self.magnification(dims)
         z = self.m.geom.sdd * (1 - 1 / M)
         base = base_rotation(self.kind, rng)
-        rng_m = self.rng("master")
-        dims_m = physical.draw_dimensions(self.kind, rng_m, prism=pc if pc in ("A", "B") else "A")
-        imp_m = physical.draw_imperfections(self.kind, rng_m)
-        cert, u_cmm = stated.certificate(dims_m, rng_m)
         prod = os.path.join(self.root_dir, self.kind)
         mroot = os.path.join(self.root_dir, self.kind + "_master")
         sets = [self.shoot_set(prod, f"{self.kind}", dims, imp, z, base, self.rng("production"), 1)]
-        for k in range(self.n_master):
-            sets.append(self.shoot_set(os.path.join(mroot, f"set{k}"), f"{self.kind}_master/set{k}", dims_m, imp_m,
-                                       z, base, self.rng(f"master_set{k}"), 2))
+        # Master specimens: the first drawn as before several existed (its
+        # folders set0, set1, ...), the others each with their own draws
+        # (folders m1set0, ...).
+        specimens = []
+        for j in range(self.n_specimens):
+            tag = "master" if j == 0 else f"master{j}"
+            rng_m = self.rng(tag)
+            dims_m = physical.draw_dimensions(self.kind, rng_m, prism=pc if pc in ("A", "B") else "A")
+            imp_m = physical.draw_imperfections(self.kind, rng_m)
+            cert, u_cmm = stated.certificate(dims_m, rng_m)
+            prefix = "" if j == 0 else f"m{j}"
+            folders = [f"{prefix}set{k}" for k in range(self.n_master)]
+            for k, f in enumerate(folders):
+                sets.append(self.shoot_set(os.path.join(mroot, f), f"{self.kind}_master/{f}", dims_m, imp_m,
+                                           z, base, self.rng(f"{tag}_set{k}"), 2))
+            specimens.append({"dimensions": dims_m, "imperfections": imp_m, "certificate": cert,
+                              "cmm_standard_uncertainty_mm": u_cmm, "folders": folders})
         from .session import fit_material, write_json
         write_json(os.path.join(prod, "material_true.json"), fit_material(self.m.beam, 1.05 * self.longest + 0.5))
         for st in sets:
@@ -117,14 +128,21 @@ class PartRun:
         if self.n_master:
             for nm in names:
                 for mat in ("", "_true_material"):
-                    write_json(os.path.join(mroot, f"verify_{nm}{mat}.json"), {
-                        "description": f"lab2 {self.m.cfg['id']}: verification of the {self.kind} jobs "
-                                       f"({nm.replace('_', ' + ')}{', true material' if mat else ''}) on a master of "
-                                       f"the same type: {self.n_master} shot sets, certificate from a CMM "
-                                       f"(u = {u_cmm} mm); run: xgauge verify verify_{nm}{mat}.json -o "
-                                       f"verification_{nm}{mat}",
-                        "master": {"certificate": cert},
-                        "measurements": [f"set{k}/job_{nm}{mat}.json" for k in range(self.n_master)]})
+                    what = (f"a master of the same type: {self.n_master} shot sets, certificate from a CMM "
+                            f"(u = {specimens[0]['cmm_standard_uncertainty_mm']} mm)" if self.n_specimens == 1 else
+                            f"{self.n_specimens} masters of the same type, each drawn on its own: {self.n_master} "
+                            "shot sets each, certificates from a CMM")
+                    vjob = {"description": f"lab2 {self.m.cfg['id']}: verification of the {self.kind} jobs "
+                                           f"({nm.replace('_', ' + ')}{', true material' if mat else ''}) on {what}; "
+                                           f"run: xgauge verify verify_{nm}{mat}.json -o verification_{nm}{mat}"}
+                    jobs_of = [[f"{f}/job_{nm}{mat}.json" for f in sp["folders"]] for sp in specimens]
+                    if self.n_specimens == 1:
+                        vjob.update({"master": {"certificate": specimens[0]["certificate"]},
+                                     "measurements": jobs_of[0]})
+                    else:
+                        vjob["masters"] = [{"certificate": sp["certificate"], "measurements": js}
+                                           for sp, js in zip(specimens, jobs_of)]
+                    write_json(os.path.join(mroot, f"verify_{nm}{mat}.json"), vjob)
                     job = dict(sets[0]["jobs"][f"job_{nm}{mat}.json"])
                     job["description"] += (f"; verified by ../{self.kind}_master/verification_{nm}{mat}/"
                                            "verification.json (run xgauge verify first)")
@@ -134,9 +152,11 @@ class PartRun:
                 "magnification_bbox_centre": M, "z_mm": z, "base_rotation_deg": base,
                 "production": {k: v for k, v in sets[0].items() if k not in ("jobs", "centre_t00", "e")},
                 "master": None if not self.n_master else {
-                    "folder": f"measured/{self.kind}_master", "dimensions": dims_m, "imperfections": imp_m,
-                    "certificate": cert, "cmm_standard_uncertainty_mm": u_cmm,
+                    "folder": f"measured/{self.kind}_master", "dimensions": specimens[0]["dimensions"],
+                    "imperfections": specimens[0]["imperfections"], "certificate": specimens[0]["certificate"],
+                    "cmm_standard_uncertainty_mm": specimens[0]["cmm_standard_uncertainty_mm"],
                     "sets": [{k: v for k, v in st.items() if k not in ("jobs", "centre_t00", "e")} for st in sets[1:]],
+                    "specimens": specimens,
                     "verify_jobs": [f"measured/{self.kind}_master/verify_{nm}{mat}.json"
                                     for nm in names for mat in ("", "_true_material")]},
                 "note": physical.__doc__.strip()}

@@ -108,12 +108,13 @@ class Session:
     """Writes one machine folder.  Frames are exposed in the order they are
     generated; each frame lags the previous one unless it follows a rest."""
 
-    def __init__(self, machine, out, imperfections=False, log=print, parts=(), masters=3):
+    def __init__(self, machine, out, imperfections=False, log=print, parts=(), masters=3, master_specimens=1):
         self.m = machine
         self.out = os.path.abspath(out)
         self.imperfect = imperfections
         self.parts = list(parts)
         self.masters = int(masters)
+        self.master_specimens = int(master_specimens)
         self.log = log
         self.prev = None
         self.prev_name = None
@@ -161,7 +162,7 @@ class Session:
         parts = {}
         for kind in self.parts:
             t = time.time()
-            parts[kind] = measured.PartRun(self, kind, self.masters).run()
+            parts[kind] = measured.PartRun(self, kind, self.masters, self.master_specimens).run()
             self.timings[f"measured_{kind}_s"] = time.time() - t
         self.timings["total_s"] = time.time() - t0
         truth = {

@@ -238,3 +238,29 @@ def test_parts_datasets_and_jobs(session):
             assert job["part"] == rec["model"]
         pv = json.load(open(os.path.join(prod, f"job_{nm}_verified.json")))
         assert pv["verification"] == f"../bracket_master/verification_{nm}/verification.json"
+
+
+def test_several_master_specimens_each_drawn_on_its_own(tmp_path):
+    """--master-specimens: each master specimen has its own dimensions,
+    imperfections and certificate, and the verification job lists them as
+    "masters", each with its own shot sets' jobs."""
+    root = str(tmp_path / "tinym")
+    s = Session(Machine(copy.deepcopy(TINY)), root, parts=["prism"], masters=1, master_specimens=2,
+                log=lambda *a: None)
+    rec = s.run()["measured"]["prism"]["master"]
+    first, second = rec["specimens"]
+    assert first["folders"] == ["set0"] and second["folders"] == ["m1set0"]
+    assert first["dimensions"] != second["dimensions"]
+    assert rec["dimensions"] == first["dimensions"]
+    mroot = os.path.join(root, "measured", "prism_master")
+    for nm in ("pair", "pair_rotated"):
+        v = json.load(open(os.path.join(mroot, f"verify_{nm}.json")))
+        assert "master" not in v and "measurements" not in v
+        assert [m["measurements"] for m in v["masters"]] == [[f"set0/job_{nm}.json"], [f"m1set0/job_{nm}.json"]]
+        assert [m["certificate"] for m in v["masters"]] == [first["certificate"], second["certificate"]]
+        for m in v["masters"]:
+            job = os.path.join(mroot, m["measurements"][0])
+            assert os.path.isfile(job)
+            t = json.load(open(os.path.join(os.path.dirname(job), "truth.json")))
+            spec = first if m is v["masters"][0] else second
+            assert t["part"]["dimensions"] == spec["dimensions"]

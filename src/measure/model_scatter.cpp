@@ -56,6 +56,21 @@ ScatterEstimate ForwardModel::scatterOf(const WorldMesh& mesh, int radiograph, i
   return spreadOf(coarse_, coarse_level, radiograph, level, false);
 }
 
+std::shared_ptr<const HaloField> ForwardModel::haloFieldOf(int radiograph, int coarse_level,
+                                                           int width, int height,
+                                                           double pitch_mm) const {
+  const std::lock_guard lock(halo_fields_->mutex);
+  HaloFields::Made& made = halo_fields_->fields[{radiograph, coarse_level}];
+  // A detector pose that moves changes neither the coarse grid nor its
+  // pitch; made again should either ever differ.
+  if (!made.field || made.width != width || made.height != height || made.pitch_mm != pitch_mm)
+    made = {
+        width, height, pitch_mm,
+        std::make_shared<const HaloField>(job().scatter.haloField(
+            this->radiograph(radiograph).open_beam, width, height, pitch_mm, 1 << coarse_level))};
+  return made.field;
+}
+
 ScatterEstimate ForwardModel::spreadOf(const Image& coarse, int coarse_level, int radiograph,
                                        int level, bool derivative) const {
   ScatterEstimate out;
@@ -69,10 +84,11 @@ ScatterEstimate ForwardModel::spreadOf(const Image& coarse, int coarse_level, in
   // derivative's K * (dI O) / O.
   const ScatterModel& scatter = job().scatter;
   const double coarse_pitch = machineAt(coarse_level).pitch_u_mm;
-  HaloField field = scatter.haloField(this->radiograph(radiograph).open_beam, coarse.width(),
-                                      coarse.height(), coarse_pitch, 1 << coarse_level);
-  out.blurred = scatter.spreadAroundIn(coarse, coarse_pitch, derivative ? 0.0f : 1.0f, field, 0.25);
-  out.flat = std::move(field.flat);
+  const std::shared_ptr<const HaloField> field =
+      haloFieldOf(radiograph, coarse_level, coarse.width(), coarse.height(), coarse_pitch);
+  out.blurred =
+      scatter.spreadAroundIn(coarse, coarse_pitch, derivative ? 0.0f : 1.0f, *field, 0.25);
+  out.flat = field->flat;
   // The model's open-beam level in the white region (full-size coordinates).
   const PixelRect white = spec(radiograph).white_region;
   const double full_to_coarse = 1.0 / static_cast<double>(1 << coarse_level);

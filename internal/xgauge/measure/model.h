@@ -51,6 +51,9 @@
 #include "xgauge/xray/renderer.h"
 
 #include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
 #include <optional>
 #include <span>
 #include <string>
@@ -287,7 +290,23 @@ class ForwardModel {
                           int samples, std::span<const int> radiographs,
                           std::span<const double> out, std::vector<double>& jacobian);
 
+  // The halo's field of one radiograph at one coarse level (image/scatter.h):
+  // fixed by the inputs, made once per model (it blurs the open beam over
+  // the plane) rather than on every render and derivative column.
+  struct HaloFields {
+    struct Made {
+      int width = 0, height = 0;  // the coarse image's
+      double pitch_mm = 0.0;
+      std::shared_ptr<const HaloField> field;
+    };
+    std::mutex mutex;
+    std::map<std::pair<int, int>, Made> fields;  // by (radiograph, coarse level)
+  };
+  std::shared_ptr<const HaloField> haloFieldOf(int radiograph, int coarse_level, int width,
+                                               int height, double pitch_mm) const;
+
   const MeasurementInputs& inputs_;
+  std::shared_ptr<HaloFields> halo_fields_ = std::make_shared<HaloFields>();
   Machine machine_;  // the inputs', with theta's detector pose when free
   PartModel part_;  // this model's own copy: evaluating one is not thread-safe
   ExponentialSum base_material_;  // as given (setMaterial)

@@ -245,7 +245,9 @@ Substitution substitute(double measured, double own_combined, const VerifiedDime
       std::max(0.0, own_combined * own_combined - verified.own_master * verified.own_master));
   const double p2 = verified.u_p * verified.u_p,
                between = verified.u_s * verified.u_s + verified.u_b * verified.u_b;
-  s.combined = std::sqrt(verified.u_cal * verified.u_cal + p2 + between + s.u_w * s.u_w);
+  // Several masters' certificates are in their biases' spread (the header).
+  const double cal2 = verified.masters > 1 ? 0.0 : verified.u_cal * verified.u_cal;
+  s.combined = std::sqrt(cal2 + p2 + between + s.u_w * s.u_w);
   const double u4 = s.combined * s.combined * s.combined * s.combined;
   // Welch-Satterthwaite over the estimates (the header): one where u_p and
   // u_b are the same estimate, two where the masters were measured again.

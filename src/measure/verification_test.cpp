@@ -159,11 +159,12 @@ TEST(Verification, IsRefusedOutsideItsConditions) {
 //   squares 2 x 4e-6 + 4 x 1e-6 = 12e-6 over N - M = 3: u_p^2 = 4e-6,
 //   u_p = 0.002
 //   u_s^2 = 49e-6 - 4e-6 x mean(1/2) = 47e-6;  u_s = 0.00685565
-//   u_cal = sqrt((1e-6 + 4e-6 + 4e-6) / 3) = sqrt(3e-6) = 0.00173205
+//   u_cal = sqrt((1e-6 + 4e-6 + 4e-6) / 3) = sqrt(3e-6) = 0.00173205, for
+//   the record: the certificates' errors are in the biases' spread
 // A workpiece with the masters' own u (u_w = 0):
-//   u^2 = 3e-6 + 4e-6 + 47e-6 + 49e-6 / 3 = 70.3333e-6;  u = 0.00838650
+//   u^2 = 4e-6 + 47e-6 + 49e-6 / 3 = 67.3333e-6;  u = 0.00820569
 //   nu = u^4 / (u_p^4 / 3 + (u_s^2 + u_b^2)^2 / 2)
-//      = 4946.78e-12 / (5.3333e-12 + 2005.56e-12) = 2.46000
+//      = 4533.78e-12 / (5.3333e-12 + 2005.56e-12) = 2.25461
 // The same values as six masters measured once each: u_p = s of the six
 // biases (0.010, 0.014, 0.004, 0.006, 0.018, 0.020; mean 0.012; squares
 // 4 + 4 + 64 + 36 + 36 + 64 = 208e-6 over 5: 41.6e-6), u_b = u_p / sqrt(6),
@@ -194,8 +195,8 @@ TEST(Verification, SeveralMastersMeasureTheSpecimensOwnVariation) {
   const Substitution s = substitute(10.030, 0.004, d, 2.0);
   EXPECT_NEAR(s.value, 10.018, 1e-12);
   EXPECT_EQ(s.u_w, 0.0);
-  EXPECT_NEAR(s.combined, 0.0083864971, 1e-9);
-  EXPECT_NEAR(s.effective_dof, 2.4599956, 1e-6);
+  EXPECT_NEAR(s.combined, 0.0082056891, 1e-9);
+  EXPECT_NEAR(s.effective_dof, 2.2546138, 1e-6);
   EXPECT_NEAR(s.expanded, studentCoverageFactor(s.effective_dof, 2.0) * s.combined, 1e-15);
   // The file keeps the masters and u_s.
   const Verification back = Verification::fromConfig(

@@ -304,6 +304,8 @@ void readAcceptance(const ConfigNode& root, MeasurementJob& job) {
   AcceptanceRule& rule = job.acceptance;
   if (auto v = acceptance->find("max_misfit_ratio")) rule.max_misfit_ratio = v->number(1.0, 1e3);
   if (auto v = acceptance->find("max_region_share")) rule.max_region_share = v->number(0.0, 1.0);
+  if (auto v = acceptance->find("retry_misfit_ratio"))
+    rule.retry_misfit_ratio = v->number(1.0, 1e3);
   if (auto v = acceptance->find("fail_at_bound")) rule.fail_at_bound = v->as<bool>();
   if (auto v = acceptance->find("retries")) rule.retries = static_cast<int>(v->integer(0, 10));
 }

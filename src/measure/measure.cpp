@@ -518,6 +518,13 @@ void tryCandidates(ForwardModel& model, const std::vector<double>& searched_thet
   best.evaluations = evaluations;
 }
 
+// Whether a fit is kept without trying the pipeline again from other starts:
+// the rule passes it and no radiograph leaves more than the rule's
+// retry_misfit_ratio times its noise.
+bool acceptedAsIs(const MeasurementResult& fit, const AcceptanceRule& rule) {
+  return fit.check.failures.empty() && fit.check.worstMisfitRatio() <= rule.retry_misfit_ratio;
+}
+
 // One run of the pipeline from theta: the poses, the joint fit from their
 // candidates until one passes the acceptance rule (when `judge`), the
 // budget and the self-checks; `seed` for its searches.
@@ -584,15 +591,22 @@ MeasurementResult measure(ForwardModel& model, std::vector<double> theta,
   const bool judge = options.assess && options.judge;
   MeasurementResult best = runPipeline(model, theta, options, schedule, job.seed, judge);
   int evaluations = best.evaluations;
-  // A fit the rule refuses: again from other starts, the pose searches with
+  // A fit the rule refuses, or a doubtful one (AcceptanceRule::
+  // retry_misfit_ratio): again from other starts, the pose searches with
   // another seed and twice their starts.
   Schedule wider = schedule;
   wider.pose.multistart = 2 * std::max(2, schedule.pose.multistart);
-  for (int k = 1; judge && k <= rule.retries && !best.check.failures.empty(); ++k) {
-    spdlog::warn(
-        "attempt {} is not a measurement ({} failure(s), the first: {}); trying again "
-        "from other starts",
-        k, best.check.failures.size(), best.check.failures.front());
+  for (int k = 1; judge && k <= rule.retries && !acceptedAsIs(best, rule); ++k) {
+    if (best.check.failures.empty())
+      spdlog::warn(
+          "attempt {} leaves {:.2f} times the noise (above {:.2f}); trying again from other "
+          "starts",
+          k, best.check.worstMisfitRatio(), rule.retry_misfit_ratio);
+    else
+      spdlog::warn(
+          "attempt {} is not a measurement ({} failure(s), the first: {}); trying again "
+          "from other starts",
+          k, best.check.failures.size(), best.check.failures.front());
     MeasurementResult next =
         runPipeline(model, theta, options, wider, retrySeed(job.seed, k), judge);
     evaluations += next.evaluations;

@@ -56,8 +56,13 @@ ConfigNode loadInputConfig(const std::filesystem::path& path,
 
 }  // namespace
 
+OpenBeamField openBeamOf(const RadiographFrames& frames, const Machine& machine) {
+  return OpenBeamField::fromFrames(machine.openBeamGeometry(), frames.dark, frames.flat);
+}
+
 PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
-                                     const RadiographSpec& spec, const Machine& machine) {
+                                     const RadiographSpec& spec, const Machine& machine,
+                                     const OpenBeamField* open_beam) {
   if (raw.width() != machine.columns || raw.height() != machine.rows)
     fail("{} is {}x{} pixels but the machine's detector is {}x{}", spec.image.string(),
          raw.width(), raw.height(), machine.columns, machine.rows);
@@ -66,7 +71,7 @@ PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
       normalizeRadiograph(std::move(raw), frames, spec.white_region, ClampPolicy::kNone, name);
   const Image& image = normalized.image;
   PreparedRadiograph out;
-  out.open_beam = OpenBeamField::fromFrames(machine.openBeamGeometry(), frames.dark, frames.flat);
+  out.open_beam = open_beam ? *open_beam : openBeamOf(frames, machine);
   out.repaired_pixels = normalized.repaired_pixels;
   out.lag = normalized.lag;
   out.white_mean_uncertainty = normalized.white_mean_uncertainty;
@@ -122,6 +127,8 @@ std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
   std::set<std::filesystem::path> previous_frames;
   for (const RadiographSpec& spec : job.radiographs)
     if (!spec.previous.empty()) previous_frames.insert(spec.previous);
+  // The open beam's field, once per pair of dark and flat frames.
+  std::map<std::pair<std::filesystem::path, std::filesystem::path>, OpenBeamField> open_beams;
   std::vector<std::shared_ptr<const PreparedRadiograph>> out;
   if (machine.column_crosstalk > 0.0)
     spdlog::info("the detector's column crosstalk, {:.5f} +- {:.2g}, is undone on the raw frames",
@@ -140,10 +147,13 @@ std::vector<std::shared_ptr<const PreparedRadiograph>> loadRadiographs(
       given.lag_fraction = machine.lag_fraction;
       given.lag_fraction_uncertainty = machine.lagFractionUncertainty();
     }
+    auto field = open_beams.find({spec.dark, spec.flat});
+    if (field == open_beams.end())
+      field = open_beams.emplace(std::pair{spec.dark, spec.flat}, openBeamOf(given, machine)).first;
     out.push_back(std::make_shared<const PreparedRadiograph>(prepareRadiograph(
         previous_frames.count(spec.image) ? Image(frame(spec.image))
                                           : readInputRadiograph(spec.image, machine, sha256),
-        given, spec, machine)));
+        given, spec, machine, &field->second)));
   }
   return out;
 }

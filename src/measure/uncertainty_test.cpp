@@ -632,6 +632,18 @@ TEST_F(Uncertainty, TheFlatsSlopeThatMayBeTheHeelIsInTheBudget) {
     largest = std::max(largest, std::abs(predicted));
   }
   EXPECT_GT(largest, 1e-3);  // the slope matters to the sizes
+  // Radiographs that share their dark and flat share one fitted field
+  // (loadRadiographs); one that names another flat gets that flat's.
+  {
+    Image level(scene.machine.columns, scene.machine.rows, 101.0f);
+    writeTiff(dir_ / "flat_level.tif", level, TiffFormat::kFloat32);
+    nlohmann::json job = nlohmann::json::parse(std::ifstream(dir_ / "job.json"));
+    job["radiographs"][1]["flat"] = "flat_level.tif";
+    std::ofstream(dir_ / "job_two_flats.json") << job.dump();
+    const MeasurementInputs two = loadMeasurementInputs(dir_ / "job_two_flats.json");
+    EXPECT_NEAR(two.radiographs[0]->open_beam.heelUPerMm(), 0.5 * scene.flat_slope_per_mm, 2e-6);
+    EXPECT_NEAR(two.radiographs[1]->open_beam.heelUPerMm(), 0.0, 1e-9);
+  }
   Scene uniform = scene;
   uniform.flat_slope_per_mm = 0.0;
   const MeasurementResult plain = measureScene(uniform);

@@ -340,6 +340,7 @@ std::shared_ptr<const PreparedRadiograph> PreparedShots::get(const RadiographSpe
       frames.flat = &*flat_;
       frames.column_crosstalk = machine_.column_crosstalk;
       frames.bad_pixels = machine_.bad_pixels.get();
+      if (!open_beam_) open_beam_ = openBeamOf(frames, machine_);
     }
     // A shot's previous frame (the one before it in the dataset's listing),
     // read raw for its lag.
@@ -352,10 +353,10 @@ std::shared_ptr<const PreparedRadiograph> PreparedShots::get(const RadiographSpe
       frames.lag_fraction_uncertainty = machine_.lagFractionUncertainty();
     }
     it = prepared_
-             .emplace(
-                 spec.image.string(),
-                 std::make_shared<const PreparedRadiograph>(prepareRadiograph(
-                     readInputRadiograph(spec.image, machine_, sha256_), frames, spec, machine_)))
+             .emplace(spec.image.string(),
+                      std::make_shared<const PreparedRadiograph>(prepareRadiograph(
+                          readInputRadiograph(spec.image, machine_, sha256_), frames, spec,
+                          machine_, open_beam_ ? &*open_beam_ : nullptr)))
              .first;
   }
   return it->second;

@@ -47,8 +47,15 @@ struct PreparedRadiograph {
 // Normalizes `raw` (named `spec.image` in errors) and builds its pyramid and
 // roi (spec.roi, or the part's shadow: job.h). Throws Error naming the image
 // when its size is not the machine's detector or a region lies outside it.
+// `open_beam`: the field fitted to the frames' flat (openBeamOf), which
+// radiographs sharing their dark and flat share; fitted here when null.
 PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
-                                     const RadiographSpec& spec, const Machine& machine);
+                                     const RadiographSpec& spec, const Machine& machine,
+                                     const OpenBeamField* open_beam = nullptr);
+
+// The open beam's field the frames' flat (less their dark) gives on this
+// machine's panel; a uniform one without frames.
+OpenBeamField openBeamOf(const RadiographFrames& frames, const Machine& machine);
 
 // The detector scatter a wedge calibration found, as its material.json
 // carries it under "scatter", with how the curve moves with it when given.

@@ -126,6 +126,7 @@ class PreparedShots {
   const Machine& machine_;
   mutable std::mutex mutex_;
   std::optional<Image> dark_, flat_;
+  std::optional<OpenBeamField> open_beam_;  // the flat's, fitted once
   std::map<std::string, std::shared_ptr<const PreparedRadiograph>> prepared_;
   std::map<std::string, std::string> sha256_;
 };

@@ -186,6 +186,11 @@ nlohmann::json detectorJson(const Characterization& c, const std::string& bad_pi
         {"open_beam_heel",
          {{"weight_change", h.heel_share_weight_change},
           {"gaussian_equivalent_sigma_change_mm", h.heel_share_equivalent_sigma_change_mm}}},
+        {"kernel_choice",
+         {{"shape", h.kernel_choice_shape.empty() ? nlohmann::json()
+                                                  : nlohmann::json(h.kernel_choice_shape)},
+          {"weight_change", h.kernel_choice_weight_change},
+          {"gaussian_equivalent_sigma_change_mm", h.kernel_choice_equivalent_sigma_change_mm}}},
         {"binning", h.binning},
         {"bins", h.bins},
         {"candidates", candidates},

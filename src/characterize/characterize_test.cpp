@@ -66,6 +66,33 @@ TEST(EdgeHalo, TwoGaussiansAreToldFromOne) {
   EXPECT_NEAR(fit.equivalent_sigma_mm, truth.equivalentSigmaMm(), 0.05 * truth.equivalentSigmaMm());
 }
 
+// A Gaussian with an exponential tail: the tail's kernel finds it (its
+// search also starts from the two Gaussians' widths), and where the other
+// two-width kernel fits about as well the difference of their widths is in
+// the width's uncertainty, which covers the error.
+TEST(EdgeHalo, ATailedHalosWidthIsCoveredWhicheverKernelFitsIt) {
+  ScatterModel truth;
+  truth.weight = 0.09, truth.shape = HaloShape::kGaussExp, truth.border = HaloBorder::kOpen;
+  truth.sigma_mm = 4.0, truth.tail_fraction = 0.2, truth.tail_length_mm = 10.0;
+  const EdgeHaloFit fit = fitEdgeHalo(edgeShot(truth, 0.5), 0.5, {});
+  const EdgeHaloCandidate* tail = nullptr;
+  for (const EdgeHaloCandidate& c : fit.candidates)
+    if (c.scatter.shape == HaloShape::kGaussExp && c.scatter.border == HaloBorder::kOpen) tail = &c;
+  ASSERT_NE(tail, nullptr);
+  EXPECT_NEAR(tail->scatter.equivalentSigmaMm(), truth.equivalentSigmaMm(),
+              0.05 * truth.equivalentSigmaMm());
+  EXPECT_LT(tail->misfit_ratio, 1.2);
+  EXPECT_NEAR(fit.scatter.weight, truth.weight, 0.03 * truth.weight) << fit.choice;
+  EXPECT_LT(std::abs(fit.equivalent_sigma_mm - truth.equivalentSigmaMm()),
+            2.0 * fit.equivalent_sigma_uncertainty_mm)
+      << fit.choice;
+  if (!fit.kernel_choice_shape.empty()) {
+    EXPECT_GE(fit.equivalent_sigma_uncertainty_mm,
+              std::abs(fit.kernel_choice_equivalent_sigma_change_mm));
+    EXPECT_NE(fit.kernel_choice_shape, toString(fit.scatter.shape));
+  }
+}
+
 TEST(EdgeHalo, AHaloWiderThanHalfThePanelIsRefusedWithItsFigures) {
   ScatterModel truth;
   truth.weight = 0.2, truth.sigma_mm = 80.0, truth.border = HaloBorder::kOpen;  // panel 100 x 90 mm

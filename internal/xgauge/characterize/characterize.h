@@ -101,6 +101,13 @@ struct EdgeHaloFit {
   // the weight's and the Gaussian-equivalent width's changes, in the
   // uncertainties too (0 in a field without a slope).
   double heel_share_weight_change = 0.0, heel_share_equivalent_sigma_change_mm = 0.0;
+  // The other kernels of the chosen border that fit the shot about as well
+  // (misfit ratio within kKernelChoiceMisfit of the chosen's): the largest
+  // difference of their Gaussian-equivalent width from the chosen's, a
+  // standard uncertainty of the width (0 when none), and that kernel's
+  // weight less the chosen's, one of the weight. "shape" names it.
+  double kernel_choice_equivalent_sigma_change_mm = 0.0, kernel_choice_weight_change = 0.0;
+  std::string kernel_choice_shape;
   // s: the misfit ratio times the square root of the residual correlation
   // (>= 1), by which the profile's chi2 is scaled.
   double noise_scale = 1.0;

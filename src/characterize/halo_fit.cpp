@@ -383,7 +383,19 @@ class Profile {
     if (parameter == 1 || parameter == 2) {
       std::vector<double> start = best_.widths;
       start[static_cast<size_t>(parameter - 1)] = value;
-      return minimizeWidths(model_, shape_, start, low_, high_, parameter - 1, nullptr, 60);
+      // The other width stays on its side of the held one (the core the
+      // narrower: sigma1 < sigma2, or sigma < sqrt(3) lambda, the tail's
+      // Gaussian of the same second moment). Across it the two components
+      // swap roles and fit as well: a profile that crossed would measure
+      // the labels' swap (lab2's m08: a tail's core sigma 20 mm "+- 262").
+      const double ratio = shape_.shape == HaloShape::kGaussExp ? std::sqrt(3.0) : 1.0;
+      double low = low_, high = high_;
+      if (parameter == 1)
+        low = std::max(low_, value / ratio);
+      else
+        high = std::min(high_, value * ratio);
+      if (shape_.widths < 2 || low > high) low = low_, high = high_;
+      return minimizeWidths(model_, shape_, start, low, high, parameter - 1, nullptr, 60);
     }
     const auto k = static_cast<ptrdiff_t>(shape_.widths) + 1;
     std::array<double, 3> g{};
@@ -491,13 +503,21 @@ void setUncertainty(ScatterModel& m, int parameter, double u) {
   }
 }
 
+// The chosen shape fitted again to changed data (a half of the shot, a
+// moved field) from the full fit's widths: the change of the estimate the
+// change of the data makes, in the valley the full fit found (a search from
+// the grid may land in another, where the two components swap roles).
+State refit(const EdgeModel& model, const Shape& s, const State& best, double low, double high) {
+  return minimizeWidths(model, s, best.widths, low, high, -1, nullptr, 200);
+}
+
 // What the noise does not explain: the shot's upper and lower halves (each
 // with plate, edge and open beam) fitted on their own; half their
 // difference, the spread a full-shot estimate has from whatever varies
 // across the panel (the open field's shape, the gain), is added in
 // quadrature to each profile uncertainty.
 void addSplitHalves(const EdgeBins& bins, const EdgeHaloOptions& options, const Shape& s,
-                    double low, double high, EdgeHaloFit& out) {
+                    const State& best, double low, double high, EdgeHaloFit& out) {
   std::vector<ScatterModel> halves;
   for (const int half : {0, 1}) {
     EdgeBins part = bins;
@@ -506,7 +526,7 @@ void addSplitHalves(const EdgeBins& bins, const EdgeHaloOptions& options, const 
       if ((y < ny / 2) != (half == 0))
         for (int x = 0; x < part.weight.width(); ++x) part.weight(x, y) = 0.0f;
     const EdgeModel model(part, options.crosstalk, options.field);
-    halves.push_back(toScatter(s, fitShape(model, s, low, high)));
+    halves.push_back(toScatter(s, refit(model, s, best, low, high)));
   }
   const int parameters = s.widths == 1 ? 2 : 4;
   for (int p = 0; p < parameters; ++p) {
@@ -526,13 +546,13 @@ void addSplitHalves(const EdgeBins& bins, const EdgeHaloOptions& options, const 
 // (image/open_beam.h): the chosen shape fitted again with the heel's share
 // moved by its standard uncertainty; each parameter's change is added in
 // quadrature to its uncertainty.
-void addHeelShare(const EdgeBins& bins, const EdgeHaloOptions& options, const Shape& s, double low,
-                  double high, EdgeHaloFit& out) {
+void addHeelShare(const EdgeBins& bins, const EdgeHaloOptions& options, const Shape& s,
+                  const State& best, double low, double high, EdgeHaloFit& out) {
   if (!options.field.sloped()) return;
   const OpenBeamField moved_field =
       options.field.withHeelShare(OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty);
   const EdgeModel model(bins, options.crosstalk, moved_field);
-  const ScatterModel moved = toScatter(s, fitShape(model, s, low, high));
+  const ScatterModel moved = toScatter(s, refit(model, s, best, low, high));
   const int parameters = s.widths == 1 ? 2 : 4;
   for (int p = 0; p < parameters; ++p) {
     const double change = parameterOf(moved, p) - parameterOf(out.scatter, p);
@@ -667,8 +687,8 @@ EdgeHaloFit fitEdgeHalo(const Image& corrected, double pitch_mm, const EdgeHaloO
   }
   out.equivalent_sigma_uncertainty_mm =
       s.widths == 1 ? out.scatter.sigma_uncertainty_mm : eq_spread;
-  addSplitHalves(bins, options, s, low, high, out);
-  addHeelShare(bins, options, s, low, high, out);
+  addSplitHalves(bins, options, s, states[chosen], low, high, out);
+  addHeelShare(bins, options, s, states[chosen], low, high, out);
   addKernelChoice(chosen, out);
   return out;
 }

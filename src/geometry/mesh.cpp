@@ -222,7 +222,8 @@ struct PointHash {
   }
 };
 
-TriangleMesh weld(const TriangleSoup& soup, const std::string& file) {
+// `kept`, when given, receives the soup index of every triangle of the result.
+TriangleMesh weld(const TriangleSoup& soup, const std::string& file, std::vector<uint32_t>* kept) {
   // Exact matches first.
   TriangleMesh mesh;
   std::unordered_map<Vec3, uint32_t, PointHash> index_of;
@@ -243,24 +244,32 @@ TriangleMesh weld(const TriangleSoup& soup, const std::string& file) {
   if (tolerance > 0) {
     const std::vector<uint32_t> representative = mergeClose(mesh.vertices, box.min_mm, tolerance);
     std::vector<uint32_t> new_index(mesh.vertices.size());
-    std::vector<Vec3> kept;
+    std::vector<Vec3> survivors;
     for (uint32_t i = 0; i < mesh.vertices.size(); ++i) {
       if (representative[i] == i) {
-        new_index[i] = static_cast<uint32_t>(kept.size());
-        kept.push_back(mesh.vertices[i]);
+        new_index[i] = static_cast<uint32_t>(survivors.size());
+        survivors.push_back(mesh.vertices[i]);
       } else {
         new_index[i] = new_index[representative[i]];  // representative[i] < i
       }
     }
-    mesh.vertices = std::move(kept);
+    mesh.vertices = std::move(survivors);
     for (Triangle& t : mesh.triangles)
       for (uint32_t& v : t) v = new_index[v];
   }
 
   // Triangles that lost a corner to welding cover no area: drop them.
   const size_t before = mesh.triangles.size();
-  std::erase_if(mesh.triangles,
-                [](const Triangle& t) { return t[0] == t[1] || t[1] == t[2] || t[2] == t[0]; });
+  std::vector<Triangle> surviving;
+  surviving.reserve(before);
+  if (kept) kept->clear();
+  for (size_t i = 0; i < before; ++i) {
+    const Triangle& t = mesh.triangles[i];
+    if (t[0] == t[1] || t[1] == t[2] || t[2] == t[0]) continue;
+    surviving.push_back(t);
+    if (kept) kept->push_back(static_cast<uint32_t>(i));
+  }
+  mesh.triangles = std::move(surviving);
   if (mesh.triangles.size() != before)
     spdlog::warn("{}: dropped {} triangles that collapsed when welding vertices", file,
                  before - mesh.triangles.size());
@@ -269,8 +278,9 @@ TriangleMesh weld(const TriangleSoup& soup, const std::string& file) {
 
 }  // namespace
 
-TriangleMesh closedMeshFromSoup(const TriangleSoup& soup, const std::string& source) {
-  TriangleMesh mesh = weld(soup, source);
+TriangleMesh closedMeshFromSoup(const TriangleSoup& soup, const std::string& source,
+                                std::vector<uint32_t>* kept) {
+  TriangleMesh mesh = weld(soup, source, kept);
   const MeshCheck check = checkClosedMesh(mesh);
   if (check.problem == MeshCheck::Problem::kInward) {
     spdlog::warn("{}: triangles face inward; flipped them all", source);

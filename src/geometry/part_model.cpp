@@ -1,6 +1,7 @@
 #include "xgauge/geometry/part_model.h"
 
 #include "expression.h"
+#include "face_moves.h"
 #include "solid.h"
 
 #include "xgauge/core/config.h"
@@ -35,6 +36,7 @@ struct PartModel::Definition {
   std::vector<Constraint> constraints;
   std::vector<ExpressionSource> scalars;  // the solid's, see SolidSpec
   std::unique_ptr<const Solid> shape;
+  bool faced = false;  // a STEP solid whose faces the dimensions move
 
   // "width=20.977 mm, thickness=13.02 mm" for error messages.
   std::string describe(std::span<const double> values) const {
@@ -212,21 +214,13 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
   d.name = path.stem().string();
   d.description = root.get<std::string>("description");
 
-  // The shape first: an STL or STEP shape takes no dimensions.
-  const SolidSpec spec = readSolidSpec(root.at("shape"), path.parent_path());
-  d.scalars = spec.scalars;
-  if (!spec.fixed_root.empty()) {
-    for (const char* key : {"dimensions", "constants", "derived", "constraints", "combinations"})
-      if (const auto node = root.find(key))
-        node->fail(
-            fmt::format("a part with {} \"{}\" shape has no dimensions, constants, derived values "
-                        "or constraints",
-                        spec.fixed_root == "stl" ? "an" : "a", spec.fixed_root));
-  } else {
-    std::set<std::string> taken;
-    const ConfigNode dimensions = root.at("dimensions");
-    for (size_t i = 0; i < dimensions.size(); ++i) {
-      const ConfigNode item = dimensions[i];
+  // The dimensions first: a "step" solid's faces may be moved by them.
+  std::set<std::string> taken;
+  FaceMoveSources faces;
+  faces.where = SourceLocation::inFile(path.string());
+  if (const auto dimensions = root.find("dimensions")) {
+    for (size_t i = 0; i < dimensions->size(); ++i) {
+      const ConfigNode item = (*dimensions)[i];
       Dimension dimension;
       dimension.name = readName(item, taken);
       dimension.nominal = item.get<double>("nominal");
@@ -242,9 +236,31 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
                               dimension.min, dimension.max));
       if (const auto tolerance = item.find("tolerance"))
         dimension.tolerance = readTolerance(*tolerance, dimension);
+      faces.dimensions.push_back({dimension.name, dimension.nominal, dimension.unit});
+      readFaceMoves(item, faces);
       d.symbols.variables.push_back(dimension.name);
       d.dimensions.push_back(std::move(dimension));
     }
+  }
+  faces.surfaces = root.find("surfaces");
+
+  // An STL shape, or a STEP one whose faces nothing moves, takes no dimensions.
+  const SolidSpec spec = readSolidSpec(root.at("shape"), path.parent_path(), &faces);
+  d.scalars = spec.scalars;
+  d.faced = std::any_of(spec.pieces.begin(), spec.pieces.end(), [](const SolidSpec::Piece& p) {
+    return p.shape.type == ShapeType::kFaced;
+  });
+  if (!spec.fixed_root.empty()) {
+    for (const char* key : {"dimensions", "constants", "derived", "constraints", "combinations"})
+      if (const auto node = root.find(key))
+        node->fail(spec.fixed_root == "stl"
+                       ? std::string("a part with an \"stl\" shape has no dimensions, constants, "
+                                     "derived values or constraints")
+                       : std::string("a part with a \"step\" shape has dimensions only where "
+                                     "they name the faces they move (\"offset\", \"diameter\", "
+                                     "\"position\" or \"surfaces\"; docs/your-part.md)"));
+  } else {
+    root.at("dimensions");  // required
     if (const auto constants = root.find("constants")) {
       for (size_t i = 0; i < constants->size(); ++i) {
         const ConfigNode item = (*constants)[i];
@@ -289,6 +305,7 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
   } catch (const Error& e) {
     throw Error("the nominal values are not valid: " + e.message(), e.where());
   }
+  if (model.definition_->faced) model.requireBuildableWithinBounds(path);
   return model;
 }
 
@@ -442,6 +459,78 @@ std::optional<std::string> PartModel::tryEvaluate(std::span<const double> values
 void PartModel::evaluate(std::span<const double> values, std::vector<Vec3>& out) const {
   if (auto bad = findFold(values, out)) [[unlikely]]
     throw Error(bad->message, bad->where);
+}
+
+std::optional<std::string> PartModel::whyNot(std::span<const double> values,
+                                             std::vector<Vec3>& scratch) const {
+  if (auto invalid = invalidity(values)) return invalid;
+  return tryEvaluate(values, scratch);
+}
+
+PartModel::DimensionRange PartModel::buildableRange(int index) const {
+  const Dimension& dimension = definition_->dimensions.at(static_cast<size_t>(index));
+  std::vector<double> values = nominalValues();
+  std::vector<Vec3> scratch;
+  const auto why = [&](double value) {
+    values[static_cast<size_t>(index)] = value;
+    return whyNot(values, scratch);
+  };
+  DimensionRange range;
+  // Each side: out from nominal on a grid, then bisection between the last
+  // value that works and the first that does not.
+  for (const bool up : {false, true}) {
+    const double bound = up ? dimension.max : dimension.min;
+    double good = dimension.nominal, end = bound;
+    std::string reason = up ? "its max" : "its min";
+    for (int k = 1; k <= kRangeGridSteps; ++k) {
+      const double x = dimension.nominal + (bound - dimension.nominal) * k / kRangeGridSteps;
+      auto problem = why(x);
+      if (!problem) {
+        good = x;
+        continue;
+      }
+      double bad = x;
+      for (int step = 0; step < 50 && std::abs(bad - good) > 1e-9 * (dimension.max - dimension.min);
+           ++step) {
+        const double middle = 0.5 * (good + bad);
+        if (auto at_middle = why(middle)) {
+          bad = middle;
+          problem = std::move(at_middle);
+        } else {
+          good = middle;
+        }
+      }
+      end = good;
+      reason = *problem;
+      break;
+    }
+    (up ? range.high : range.low) = end;
+    (up ? range.high_reason : range.low_reason) = std::move(reason);
+  }
+  return range;
+}
+
+void PartModel::requireBuildableWithinBounds(const std::filesystem::path& path) const {
+  const std::vector<Dimension>& dimensions = definition_->dimensions;
+  std::vector<Vec3> scratch;
+  for (size_t i = 0; i < dimensions.size(); ++i) {
+    const Dimension& dimension = dimensions[i];
+    std::vector<double> values = nominalValues();
+    for (int k = 0; k <= kRangeGridSteps; ++k) {
+      values[i] = dimension.min + (dimension.max - dimension.min) * k / kRangeGridSteps;
+      if (invalidity(values)) continue;  // outside what the constraints allow
+      const auto problem = tryEvaluate(values, scratch);
+      if (!problem) continue;
+      const DimensionRange range = buildableRange(static_cast<int>(i));
+      throw Error(
+          fmt::format("dimension '{}' cannot take {} {} within its bounds [{}, {}]: {}. With the "
+                      "other dimensions at nominal it can be built from {:.6g} to {:.6g} {}: set "
+                      "its min and max within that, or add a constraint",
+                      dimension.name, values[i], dimension.unit, dimension.min, dimension.max,
+                      *problem, range.low, range.high, dimension.unit),
+          SourceLocation::at(path.string(), fmt::format("/dimensions/{}", i)));
+    }
+  }
 }
 
 TriangleMesh PartModel::mesh(std::span<const double> values) const {

@@ -1,5 +1,8 @@
 #include "shape.h"
 
+#include "face_moves.h"
+#include "faced_shape.h"
+
 #include "xgauge/geometry/polygon.h"
 #include "xgauge/geometry/step.h"
 #include "xgauge/geometry/stl.h"
@@ -331,7 +334,8 @@ class FixedShape final : public Shape {
 
 }  // namespace
 
-ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& directory) {
+ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& directory,
+                        const FaceMoveSources* faces, bool& faces_taken) {
   ShapeSpec spec;
   spec.where = shape.where();
   const ConfigNode type_node = shape.at("type");
@@ -402,7 +406,21 @@ ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& di
     spec.type = ShapeType::kFixed;
     const std::filesystem::path file = shape.get<std::string>("file");
     const std::filesystem::path path = file.is_absolute() ? file : directory / file;
-    spec.fixed = type == "stl" ? readStl(path) : readStep(path, readStepTessellation(shape));
+    if (type == "stl") {
+      spec.fixed = readStl(path);
+    } else if (!faces || faces->empty()) {
+      spec.fixed = readStep(path, readStepTessellation(shape));
+    } else {
+      // The part's dimensions move this solid's faces.
+      if (faces_taken)
+        shape.fail("the part's dimensions name faces, and this is its second \"step\" solid: "
+                   "faces can be named on one STEP solid per part");
+      faces_taken = true;
+      const StepTessellation tessellation = readStepTessellation(shape);
+      spec.type = ShapeType::kFaced;
+      spec.faced = resolveFaceMoves(readStepSolid(path, tessellation),
+                                    tessellation.chord_tolerance_mm, *faces, spec.scalars);
+    }
   } else {
     type_node.fail(
         fmt::format("unknown shape type '{}' (known: union, difference, intersection, extrusion, "
@@ -429,6 +447,8 @@ std::unique_ptr<const Shape> buildShape(const ShapeSpec& spec,
       return std::make_unique<ListedShape>(spec, nominal_scalars);
     case ShapeType::kFixed:
       return std::make_unique<FixedShape>(spec.fixed);
+    case ShapeType::kFaced:
+      return buildFacedShape(spec.faced, nominal_scalars);
   }
   XG_CHECK(false, "unknown shape type");
   return nullptr;

@@ -11,13 +11,17 @@
 
 #include <filesystem>
 #include <memory>
+#include <optional>
+#include <string>
 #include <span>
 #include <string_view>
 #include <vector>
 
 namespace xgauge {
 
-enum class ShapeType { kExtrusion, kRevolution, kMesh, kFixed };
+enum class ShapeType { kExtrusion, kRevolution, kMesh, kFixed, kFaced };
+
+struct FacedStep;
 
 // A shape as read from the file. Its scalars are the expressions whose values
 // place the vertices:
@@ -25,6 +29,9 @@ enum class ShapeType { kExtrusion, kRevolution, kMesh, kFixed };
 //   revolution: r_0, h_0, r_1, h_1, ... (profile: radius, axial position)
 //   mesh:       x_0, y_0, z_0, x_1, ...
 //   stl, step:  none (the vertices are fixed)
+//   faced:      a STEP solid with dimensions on its faces (face_moves.h):
+//               the dimensions that move faces, then the "surfaces" entries'
+//               expressions
 struct ShapeSpec {
   ShapeType type = ShapeType::kMesh;
   SourceLocation where;  // the "shape" object
@@ -36,14 +43,20 @@ struct ShapeSpec {
   int segments = 0;                 // revolution; 0: enough for a 0.001 mm chord error
   std::vector<Triangle> triangles;  // mesh
   TriangleMesh fixed;               // stl, step: the mesh read from the file
+  std::shared_ptr<const FacedStep> faced;  // faced: the solid and its moves
 };
+
+struct FaceMoveSources;
 
 // Reads one primitive solid: "extrusion" (without holes), "revolution",
 // "box", "cylinder", "mesh", "stl" or "step" (boxes become extrusions,
-// cylinders revolutions; STL and STEP files fixed meshes). Relative STL and
-// STEP paths are taken from `directory`. Placement keys
-// and holes are read by the solid (solid.h).
-ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& directory);
+// cylinders revolutions; STL and STEP files fixed meshes, or, for the STEP
+// solid that `faces` moves, a faced shape). Relative STL and STEP paths are
+// taken from `directory`. Placement keys and holes are read by the solid
+// (solid.h). `faces` (may be null) is consumed by the first "step" shape:
+// a second one with face moves pending is refused.
+ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& directory,
+                        const FaceMoveSources* faces, bool& faces_taken);
 
 // Segments that keep an inscribed polygon of this radius (mm) within
 // `chord_error_mm` of its circle (the sagitta r (1 - cos(pi / N))), at least 8.
@@ -68,6 +81,14 @@ class Shape {
   // reaching the axis. Cheap and allocation-free; it catches folds, not
   // every self-intersection.
   virtual std::string_view fold(std::span<const double> /*scalars*/) const { return {}; }
+
+  // The same for the vertices place() made from these scalars (in the
+  // shape's own frame), for shapes whose folds show only in the vertices
+  // (a faced STEP solid: a face turning over, faces that no longer meet).
+  virtual std::optional<std::string> placementProblem(std::span<const double> /*scalars*/,
+                                                      std::span<const Vec3> /*vertices*/) const {
+    return std::nullopt;
+  }
 
  protected:
   std::vector<Triangle> triangles_;

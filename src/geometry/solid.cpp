@@ -1,5 +1,7 @@
 #include "solid.h"
 
+#include "face_moves.h"
+
 #include "xgauge/geometry/polygon.h"
 
 #include <fmt/format.h>
@@ -14,8 +16,11 @@ namespace {
 // program to `spec`.
 class TreeReader {
  public:
-  TreeReader(const std::filesystem::path& directory, SolidSpec& spec)
-      : directory_(directory), spec_(spec) {}
+  TreeReader(const std::filesystem::path& directory, const FaceMoveSources* faces, SolidSpec& spec)
+      : directory_(directory), faces_(faces), spec_(spec) {}
+
+  // Whether a "step" shape took the face moves.
+  bool facesTaken() const { return faces_taken_; }
 
   void read(const ConfigNode& node, const std::vector<uint32_t>& outer) {
     const std::vector<uint32_t> chain = placementChain(node, outer);
@@ -32,7 +37,7 @@ class TreeReader {
       spec_.program.push_back({op, static_cast<uint32_t>(solids.size())});
       return;
     }
-    ShapeSpec shape = readShapeSpec(node, directory_);
+    ShapeSpec shape = readShapeSpec(node, directory_, faces_, faces_taken_);
     const auto holes = type == "extrusion" ? node.find("holes") : std::nullopt;
     if (!holes) {
       addPiece(node, std::move(shape), chain);
@@ -107,6 +112,8 @@ class TreeReader {
   }
 
   const std::filesystem::path& directory_;
+  const FaceMoveSources* faces_;
+  bool faces_taken_ = false;
   SolidSpec& spec_;
 };
 
@@ -130,12 +137,19 @@ std::optional<std::string> turnedInsideOut(std::span<const Vec3> vertices,
 
 }  // namespace
 
-SolidSpec readSolidSpec(const ConfigNode& shape, const std::filesystem::path& directory) {
+SolidSpec readSolidSpec(const ConfigNode& shape, const std::filesystem::path& directory,
+                        const FaceMoveSources* faces) {
   SolidSpec spec;
   spec.where = shape.where();
   const std::string type = shape.at("type").string();
-  if (type == "stl" || type == "step") spec.fixed_root = type;
-  TreeReader(directory, spec).read(shape, {});
+  const bool moved = faces && !faces->empty();
+  if (type == "stl" || (type == "step" && !moved)) spec.fixed_root = type;
+  TreeReader reader(directory, faces, spec);
+  reader.read(shape, {});
+  if (moved && !reader.facesTaken())
+    throw Error("the dimensions name faces (\"offset\", \"diameter\", \"position\" or "
+                "\"surfaces\"), which only a \"step\" solid has; the shape has none",
+                faces->where);
   return spec;
 }
 
@@ -176,22 +190,42 @@ void Solid::place(std::span<const double> scalars, std::span<Vec3> out) const {
   }
 }
 
+std::optional<std::string> Solid::placementProblem(const Piece& piece,
+                                                  std::span<const double> scalars,
+                                                  std::span<const Vec3> vertices) const {
+  const std::span<const Vec3> own =
+      vertices.subspan(piece.first_vertex, piece.shape->vertexCount());
+  const std::span<const double> own_scalars =
+      scalars.subspan(piece.first_scalar, piece.scalar_count);
+  if (piece.placements.empty()) return piece.shape->placementProblem(own_scalars, own);
+  // The piece's vertices back in its own frame: undo its placements,
+  // outermost first.
+  thread_local std::vector<Vec3> unplaced;
+  unplaced.assign(own.begin(), own.end());
+  for (auto p = piece.placements.rbegin(); p != piece.placements.rend(); ++p) {
+    const double* s = scalars.data() + placement_scalars_[*p];
+    const Pose pose = Pose::fromEulerDeg({s[0], s[1], s[2]}, {s[3], s[4], s[5]});
+    for (Vec3& v : unplaced) v = pose.rotation.transpose() * (v - pose.translation_mm);
+  }
+  return piece.shape->placementProblem(own_scalars, unplaced);
+}
+
 std::optional<Solid::Problem> Solid::problem(std::span<const double> scalars,
                                              std::span<const Vec3> vertices) const {
   for (const Piece& piece : pieces_) {
-    const std::string_view fold =
-        piece.shape->fold(scalars.subspan(piece.first_scalar, piece.scalar_count));
     std::optional<std::string> why;
-    if (!fold.empty()) {
+    if (const std::string_view fold =
+            piece.shape->fold(scalars.subspan(piece.first_scalar, piece.scalar_count));
+        !fold.empty())
       why = std::string(fold);
-    } else {
-      // The connectivity is fixed and was checked at load; what values can
-      // break is the orientation: a surface turned inside out, or flattened.
+    if (!why) why = placementProblem(piece, scalars, vertices);
+    // The connectivity is fixed and was checked at load; what values can
+    // break is the orientation: a surface turned inside out, or flattened.
+    if (!why)
       why = turnedInsideOut(
           vertices, vertices.subspan(piece.first_vertex, piece.shape->vertexCount()),
           std::span<const Triangle>(triangles_)
               .subspan(piece.first_triangle, piece.triangle_end - piece.first_triangle));
-    }
     if (!why) continue;
     if (pieces_.size() > 1) *why = fmt::format("solid {}: {}", piece.where.key_path, *why);
     return Problem{std::move(*why), piece.where};

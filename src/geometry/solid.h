@@ -39,12 +39,16 @@ struct SolidSpec {
   std::vector<Placement> placements;
   std::vector<ExpressionSource> scalars;  // every piece's, and every placement's
   SourceLocation where;                   // the root "shape" object
-  // "stl" or "step" when the root is such a shape (a fixed mesh); empty otherwise.
+  // "stl" or "step" when the root is such a shape, a fixed mesh (a "step"
+  // solid whose faces the dimensions move is not); empty otherwise.
   std::string fixed_root;
 };
 
-// Reads the "shape" object, recursively.
-SolidSpec readSolidSpec(const ConfigNode& shape, const std::filesystem::path& directory);
+// Reads the "shape" object, recursively. `faces` (may be null): the part's
+// dimensions on faces, which its one "step" solid takes (shape.h); Error
+// when the shape has no "step" solid to take them.
+SolidSpec readSolidSpec(const ConfigNode& shape, const std::filesystem::path& directory,
+                        const FaceMoveSources* faces);
 
 // The solid with its topology fixed at nominal values.
 class Solid {
@@ -81,6 +85,10 @@ class Solid {
     std::vector<uint32_t> placements;
     SourceLocation where;
   };
+  // Shape::placementProblem of the piece, given the part-frame vertices.
+  std::optional<std::string> placementProblem(const Piece& piece, std::span<const double> scalars,
+                                              std::span<const Vec3> vertices) const;
+
   std::vector<Piece> pieces_;
   std::vector<size_t> placement_scalars_;
   std::vector<Triangle> triangles_;

@@ -5,6 +5,7 @@
 
 #include "xgauge/core/file.h"
 
+#include <BRepAdaptor_Surface.hxx>
 #include <BRepCheck.hxx>
 #include <BRepCheck_Analyzer.hxx>
 #include <BRepCheck_ListOfStatus.hxx>
@@ -32,6 +33,11 @@
 #include <TopoDS_Shape.hxx>
 #include <XSControl_TransferReader.hxx>
 #include <XSControl_WorkSession.hxx>
+#include <gp_Cone.hxx>
+#include <gp_Cylinder.hxx>
+#include <gp_Pln.hxx>
+#include <gp_Sphere.hxx>
+#include <gp_Torus.hxx>
 
 #include <array>
 #include <cctype>
@@ -39,6 +45,7 @@
 #include <mutex>
 #include <numbers>
 #include <optional>
+#include <span>
 #include <sstream>
 #include <string>
 #include <string_view>
@@ -77,28 +84,44 @@ class FaceNames {
   int count() const { return faces_.Extent(); }
   const TopoDS_Face& face(int index) const { return TopoDS::Face(faces_(index)); }
 
+  // The STEP entity (#42) the face was read from, 0 when the transfer did
+  // not record it; and its name, empty when the file gives none.
+  int entity(const TopoDS_Shape& face) const {
+    const Handle(Standard_Transient) item = entityOf(face);
+    const auto model = modelOf();
+    return item.IsNull() || model.IsNull() ? 0 : model->IdentLabel(item);
+  }
+  std::string label(const TopoDS_Shape& face) const {
+    const auto item = Handle(StepRepr_RepresentationItem)::DownCast(entityOf(face));
+    if (item.IsNull() || item->Name().IsNull()) return {};
+    return item->Name()->ToCString();
+  }
+
   // "face 3 of 6 (#42 'top')": the entity and its name where the transfer
   // recorded them.
   std::string name(const TopoDS_Shape& face) const {
     const int index = faces_.FindIndex(face);
     std::string text = fmt::format("face {} of {}", index, faces_.Extent());
-    const Handle(XSControl_WorkSession) session = reader_.WS();
-    if (session.IsNull() || session->TransferReader().IsNull()) return text;
-    // Mode 1: the last transfer's roots and their sub-shapes (faces).
-    const Handle(Standard_Transient) entity =
-        session->TransferReader()->EntityFromShapeResult(face, 1);
-    if (entity.IsNull()) return text;
     std::string details;
-    const auto model = Handle(StepData_StepModel)::DownCast(session->Model());
-    if (!model.IsNull() && model->IdentLabel(entity) > 0)
-      details = fmt::format("#{}", model->IdentLabel(entity));
-    const auto item = Handle(StepRepr_RepresentationItem)::DownCast(entity);
-    if (!item.IsNull() && !item->Name().IsNull() && item->Name()->Length() > 0)
-      details += fmt::format("{}'{}'", details.empty() ? "" : " ", item->Name()->ToCString());
+    if (const int id = entity(face); id > 0) details = fmt::format("#{}", id);
+    if (const std::string given = label(face); !given.empty())
+      details += fmt::format("{}'{}'", details.empty() ? "" : " ", given);
     return details.empty() ? text : fmt::format("{} ({})", text, details);
   }
 
  private:
+  // Mode 1: the last transfer's roots and their sub-shapes (faces).
+  Handle(Standard_Transient) entityOf(const TopoDS_Shape& face) const {
+    const Handle(XSControl_WorkSession) session = reader_.WS();
+    if (session.IsNull() || session->TransferReader().IsNull()) return {};
+    return session->TransferReader()->EntityFromShapeResult(face, 1);
+  }
+  Handle(StepData_StepModel) modelOf() const {
+    const Handle(XSControl_WorkSession) session = reader_.WS();
+    if (session.IsNull()) return {};
+    return Handle(StepData_StepModel)::DownCast(session->Model());
+  }
+
   const STEPControl_Reader& reader_;
   TopTools_IndexedMapOfShape faces_;
 };
@@ -175,9 +198,79 @@ void requireValid(const TopoDS_Shape& shape, const FaceNames& names, const std::
   failIn(file, why + ": not a valid solid");
 }
 
-// The triangles of every face, outward, in the part frame (mm).
-TriangleSoup tessellate(const TopoDS_Shape& shape, const FaceNames& names,
-                        const StepTessellation& tessellation, const std::string& file) {
+// The face's carrying surface in the part frame (its location applied).
+Surface surfaceOf(const TopoDS_Face& face, std::string& type_name) {
+  const BRepAdaptor_Surface adaptor(face, Standard_True);
+  const auto point = [](const gp_Pnt& p) { return Vec3(p.X(), p.Y(), p.Z()); };
+  const auto direction = [](const gp_Dir& d) { return Vec3(d.X(), d.Y(), d.Z()); };
+  Surface surface;
+  switch (adaptor.GetType()) {
+    case GeomAbs_Plane: {
+      const gp_Pln plane = adaptor.Plane();
+      surface.kind = SurfaceKind::kPlane;
+      surface.origin = point(plane.Location());
+      surface.axis = direction(plane.Axis().Direction());
+      break;
+    }
+    case GeomAbs_Cylinder: {
+      const gp_Cylinder cylinder = adaptor.Cylinder();
+      surface.kind = SurfaceKind::kCylinder;
+      surface.origin = point(cylinder.Location());
+      surface.axis = direction(cylinder.Axis().Direction());
+      surface.radius = cylinder.Radius();
+      break;
+    }
+    case GeomAbs_Cone: {
+      const gp_Cone cone = adaptor.Cone();
+      surface.kind = SurfaceKind::kCone;
+      surface.origin = point(cone.Location());
+      surface.axis = direction(cone.Axis().Direction());
+      surface.radius = cone.RefRadius();
+      surface.semi_angle = cone.SemiAngle();
+      break;
+    }
+    case GeomAbs_Sphere: {
+      const gp_Sphere sphere = adaptor.Sphere();
+      surface.kind = SurfaceKind::kSphere;
+      surface.origin = point(sphere.Location());
+      surface.radius = sphere.Radius();
+      break;
+    }
+    case GeomAbs_Torus: {
+      const gp_Torus torus = adaptor.Torus();
+      surface.kind = SurfaceKind::kTorus;
+      surface.origin = point(torus.Location());
+      surface.axis = direction(torus.Axis().Direction());
+      surface.radius = torus.MajorRadius();
+      surface.minor_radius = torus.MinorRadius();
+      break;
+    }
+    case GeomAbs_BezierSurface:
+      type_name = "Bezier";
+      return surface;
+    case GeomAbs_BSplineSurface:
+      type_name = "B-spline";
+      return surface;
+    case GeomAbs_SurfaceOfRevolution:
+      type_name = "surface of revolution";
+      return surface;
+    case GeomAbs_SurfaceOfExtrusion:
+      type_name = "surface of extrusion";
+      return surface;
+    case GeomAbs_OffsetSurface:
+      type_name = "offset surface";
+      return surface;
+    default:
+      type_name = "other";
+      return surface;
+  }
+  type_name = std::string(surfaceKindName(surface.kind));
+  return surface;
+}
+
+// Meshes the shape (BRepMesh_IncrementalMesh, absolute deflection).
+void meshShape(const TopoDS_Shape& shape, const StepTessellation& tessellation,
+          const std::string& file) {
   IMeshTools_Parameters parameters;
   parameters.Deflection = parameters.DeflectionInterior = tessellation.chord_tolerance_mm;
   parameters.Angle = parameters.AngleInterior =
@@ -186,10 +279,23 @@ TriangleSoup tessellate(const TopoDS_Shape& shape, const FaceNames& names,
   parameters.InParallel = false;  // the same triangles on every run
   const BRepMesh_IncrementalMesh mesher(shape, parameters);
   if (!mesher.IsDone()) failIn(file, "OpenCASCADE's mesher failed on the shape");
+}
 
+// The triangles of every face, outward, in the part frame (mm), face by face
+// in OCCT's face order; `faces` receives each face's description and
+// `triangle_face` each triangle's face (0-based).
+TriangleSoup tessellate(const FaceNames& names, const StepTessellation& tessellation,
+                        const std::string& file, std::vector<StepFace>& faces,
+                        std::vector<uint32_t>& triangle_face) {
   TriangleSoup soup;
-  for (TopExp_Explorer e(shape, TopAbs_FACE); e.More(); e.Next()) {
-    const TopoDS_Face& face = TopoDS::Face(e.Current());
+  for (int f = 1; f <= names.count(); ++f) {
+    const TopoDS_Face& face = names.face(f);
+    StepFace& described = faces.emplace_back();
+    described.index = f;
+    described.entity = names.entity(face);
+    described.name = names.label(face);
+    described.surface = surfaceOf(face, described.surface_type);
+
     TopLoc_Location location;
     const Handle(Poly_Triangulation) triangulation = BRep_Tool::Triangulation(face, location);
     if (triangulation.IsNull() || triangulation->NbTriangles() == 0)
@@ -217,9 +323,42 @@ TriangleSoup tessellate(const TopoDS_Shape& shape, const FaceNames& names,
       if (triangle[0] == triangle[1] || triangle[1] == triangle[2] || triangle[2] == triangle[0])
         continue;
       soup.push_back(triangle);
+      triangle_face.push_back(static_cast<uint32_t>(f - 1));
     }
   }
   return soup;
+}
+
+// Area, centroid, mean outward normal and, for analytic surfaces, which way
+// the outward normal points relative to Surface::gradient, from the face's
+// triangles.
+void describeTriangles(const TriangleMesh& mesh, std::span<const uint32_t> triangle_face,
+                       std::vector<StepFace>& faces) {
+  std::vector<Vec3> weighted_centroid(faces.size(), Vec3::Zero());
+  std::vector<Vec3> area_normal(faces.size(), Vec3::Zero());
+  std::vector<double> along_gradient(faces.size(), 0.0);
+  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const Triangle& tri = mesh.triangles[t];
+    const Vec3& a = mesh.vertices[tri[0]];
+    const Vec3& b = mesh.vertices[tri[1]];
+    const Vec3& c = mesh.vertices[tri[2]];
+    const Vec3 twice_area = (b - a).cross(c - a);
+    const Vec3 centre = (a + b + c) / 3.0;
+    const size_t f = triangle_face[t];
+    StepFace& face = faces[f];
+    face.area_mm2 += 0.5 * twice_area.norm();
+    weighted_centroid[f] += 0.5 * twice_area.norm() * centre;
+    area_normal[f] += 0.5 * twice_area;
+    if (face.surface.kind != SurfaceKind::kOther)
+      along_gradient[f] += 0.5 * twice_area.dot(face.surface.gradient(centre));
+  }
+  for (size_t f = 0; f < faces.size(); ++f) {
+    StepFace& face = faces[f];
+    if (face.area_mm2 > 0) face.centroid_mm = weighted_centroid[f] / face.area_mm2;
+    const double n = area_normal[f].norm();
+    face.normal = n > 0 ? Vec3(area_normal[f] / n) : Vec3::Zero();
+    face.outward = along_gradient[f] < 0 ? -1 : 1;
+  }
 }
 
 TopoDS_Shape readShape(STEPControl_Reader& reader, const std::filesystem::path& path,
@@ -254,10 +393,21 @@ void requireTolerances(const StepTessellation& t, const std::string& file) {
 
 }  // namespace
 
-TriangleMesh readStep(const std::filesystem::path& path, const StepTessellation& tessellation) {
+std::string StepSolid::describe(size_t face) const {
+  const StepFace& f = faces[face];
+  std::string details;
+  if (f.entity > 0) details = fmt::format("#{}", f.entity);
+  if (!f.name.empty()) details += fmt::format("{}'{}'", details.empty() ? "" : " ", f.name);
+  details += fmt::format("{}{}", details.empty() ? "" : ", ", f.surface_type);
+  return fmt::format("face {} of {} ({})", f.index, faces.size(), details);
+}
+
+StepSolid readStepSolid(const std::filesystem::path& path, const StepTessellation& tessellation) {
   const std::string file = path.string();
   requireTolerances(tessellation, file);
+  StepSolid solid;
   TriangleSoup soup;
+  std::vector<uint32_t> soup_face;
   {
     const std::lock_guard lock(occtMutex());
     silenceOcct();
@@ -269,13 +419,23 @@ TriangleMesh readStep(const std::filesystem::path& path, const StepTessellation&
         failIn(file, "the shape has no faces: not a solid (a STEP file of curves or points?)");
       requireClosedSurface(names, file);
       requireValid(shape, names, file);
-      soup = tessellate(shape, names, tessellation, file);
+      meshShape(shape, tessellation, file);
+      soup = tessellate(names, tessellation, file, solid.faces, soup_face);
     } catch (const Standard_Failure& failure) {
       failIn(file, fmt::format("OpenCASCADE failed: {} ({})", failure.GetMessageString(),
                                failure.DynamicType()->Name()));
     }
   }
-  return closedMeshFromSoup(soup, file);
+  std::vector<uint32_t> kept;
+  solid.mesh = closedMeshFromSoup(soup, file, &kept);
+  solid.triangle_face.reserve(kept.size());
+  for (const uint32_t t : kept) solid.triangle_face.push_back(soup_face[t]);
+  describeTriangles(solid.mesh, solid.triangle_face, solid.faces);
+  return solid;
+}
+
+TriangleMesh readStep(const std::filesystem::path& path, const StepTessellation& tessellation) {
+  return readStepSolid(path, tessellation).mesh;
 }
 
 }  // namespace xgauge

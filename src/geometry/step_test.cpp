@@ -5,8 +5,7 @@
 // missing or not STEP, tolerances).
 #include "xgauge/geometry/step.h"
 
-#include "test_files.h"
-#include "xray/test_machines.h"
+#include "occt_test_solids.h"
 
 #include "xgauge/core/config.h"
 #include "xgauge/core/file.h"
@@ -53,25 +52,20 @@
 namespace xgauge {
 namespace {
 
+using testing::bracketSolid;
 using testing::expectLoadError;
 using testing::kParts;
+using testing::maxAbsDifference;
+using testing::poseAbout;
+using testing::renderPaths;
+using testing::valuesByName;
+using testing::writeStep;
 using testing::loadText;
 using testing::posed;
 using testing::squareMachine;
 using testing::testFile;
 using testing::writeTestFile;
 constexpr double kPi = std::numbers::pi;
-
-// Writes `shape` as a STEP file (AP214, mm) in the test's folder.
-std::filesystem::path writeStep(const std::string& name, const TopoDS_Shape& shape) {
-  // The writer reports to OCCT's default messenger: keep the test's output clean.
-  Message::DefaultMessenger()->RemovePrinters(STANDARD_TYPE(Message_PrinterOStream));
-  const std::filesystem::path path = testFile(name);
-  STEPControl_Writer writer;
-  EXPECT_EQ(writer.Transfer(shape, STEPControl_AsIs), IFSelect_RetDone);
-  EXPECT_EQ(writer.Write(path.string().c_str()), IFSelect_RetDone);
-  return path;
-}
 
 // readStep's Error: its message, and that it is located in `path`.
 std::string stepError(const std::filesystem::path& path, const StepTessellation& t = {}) {
@@ -239,8 +233,9 @@ TEST(Step, TolerancesOutOfRangeAreRefused) {
                   "/shape/chord_tolerance_nm");
   expectLoadError(R"({"description": "d", "dimensions": [],
                       "shape": {"type": "step", "file": "block.step"}})",
-                  "a part with a \"step\" shape has no dimensions, constants, derived values or "
-                  "constraints",
+                  "a part with a \"step\" shape has dimensions only where they name the faces "
+                  "they move (\"offset\", \"diameter\", \"position\" or \"surfaces\"; "
+                  "docs/your-part.md)",
                   "/dimensions");
   // NaN cannot be written in JSON; a document built in memory can hold it.
   nlohmann::json document = nlohmann::json::parse(
@@ -266,29 +261,6 @@ TEST(Step, TolerancesOutOfRangeAreRefused) {
 
 // ---------------------------------------------------------------------------
 // Rendering
-
-double maxAbsDifference(const ImageT<double>& a, const ImageT<double>& b) {
-  double worst = 0.0;
-  for (size_t i = 0; i < a.size(); ++i)
-    worst = std::max(worst, std::abs(a.pixels()[i] - b.pixels()[i]));
-  return worst;
-}
-
-ImageT<double> render(const Machine& machine, const TriangleMesh& mesh, const Pose& pose, int n) {
-  std::vector<Vec3> world;
-  RenderOptions options;
-  options.samples_per_axis = n;
-  ImageT<double> image;
-  renderPathLength(machine, posed(mesh, pose, world), options, image);
-  return image;
-}
-
-// Places `centre` (part frame) at `at` after rotating by Euler angles (deg).
-Pose poseAbout(const Vec3& angles_deg, const Vec3& centre, const Vec3& at) {
-  Pose pose = Pose::fromEulerDeg(angles_deg, Vec3::Zero());
-  pose.translation_mm = at - pose.rotation * centre;
-  return pose;
-}
 
 TEST(Step, OperandOfACsgTreeRendersAsTheSameTreeWithAnStlOperand) {
   // A 30 x 20 x 10 block from CAD with a parametric hole of diameter d at x.
@@ -336,8 +308,8 @@ TEST(Step, OperandOfACsgTreeRendersAsTheSameTreeWithAnStlOperand) {
   ImageT<double> previous;
   for (const std::map<std::string, double>& values :
        {std::map<std::string, double>{}, {{"d", 8.5}, {"x", 12.0}}}) {
-    const ImageT<double> a = render(machine, from_step.mesh(from_step.values(values)), pose, 2);
-    const ImageT<double> b = render(machine, from_stl.mesh(from_stl.values(values)), pose, 2);
+    const ImageT<double> a = renderPaths(machine, from_step.mesh(from_step.values(values)), pose, 2);
+    const ImageT<double> b = renderPaths(machine, from_stl.mesh(from_stl.values(values)), pose, 2);
     EXPECT_LT(maxAbsDifference(a, b), 1e-9);
     if (!previous.empty()) {
       EXPECT_GT(maxAbsDifference(a, previous), 1.0);  // the hole moved
@@ -359,22 +331,9 @@ struct Bracket {
     du = at("upright_hole_diameter"), hu = at("upright_hole_height");
   }
 
-  // Modelled as bracket.json describes it, with OpenCASCADE's own API: the
-  // union of the plates minus three true cylinders, 1 mm beyond the plates.
-  TopoDS_Shape occt() const {
-    TopoDS_Shape body =
-        BRepAlgoAPI_Fuse(BRepPrimAPI_MakeBox(gp_Pnt(0, 0, 0), gp_Pnt(L, W, T)).Shape(),
-                         BRepPrimAPI_MakeBox(gp_Pnt(0, 0, 0), gp_Pnt(T, W, H)).Shape())
-            .Shape();
-    for (const double x : {c, c + s})
-      body = BRepAlgoAPI_Cut(body, BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(x, W / 2, -1), gp::DZ()),
-                                                            d / 2, T + 2)
-                                       .Shape())
-                 .Shape();
-    return BRepAlgoAPI_Cut(body, BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(-1, W / 2, hu), gp::DX()),
-                                                          du / 2, T + 2)
-                                     .Shape())
-        .Shape();
+  // Modelled as bracket.json describes it, with OpenCASCADE's own API.
+  static TopoDS_Shape occt(const PartModel& part) {
+    return bracketSolid(valuesByName(part, part.nominalValues()));
   }
 
   // The exact path length (mm) of the segment p + t (q - p), t in [0, 1],
@@ -457,7 +416,7 @@ ImageT<double> renderExact(const Machine& machine, const Bracket& bracket, const
 TEST(Step, BracketFromOpenCascadeRendersAsPartsBracketJson) {
   const PartModel json_part = PartModel::load(kParts + "bracket.json");
   const Bracket bracket(json_part);
-  writeStep("bracket.step", bracket.occt());
+  writeStep("bracket.step", Bracket::occt(json_part));
   const auto step_part = [](const char* chord) {
     return loadText(fmt::format(R"({{"description": "parts/bracket.json from OpenCASCADE",
       "shape": {{"type": "step", "file": "bracket.step", "chord_tolerance_mm": {}}}}})",
@@ -470,7 +429,7 @@ TEST(Step, BracketFromOpenCascadeRendersAsPartsBracketJson) {
   const Machine machine = squareMachine(160, 0.4);
   const Pose pose = poseAbout({35, -25, 15}, {20, 12.5, 15}, {0, 0, 150});
   const int n = 4;
-  const ImageT<double> json = render(machine, json_part.mesh(json_part.nominalValues()), pose, n);
+  const ImageT<double> json = renderPaths(machine, json_part.mesh(json_part.nominalValues()), pose, n);
   const ImageT<double> exact = renderExact(machine, bracket, pose, n);
   int covered = 0;
   for (double x : json.pixels()) covered += x > 0;
@@ -482,7 +441,7 @@ TEST(Step, BracketFromOpenCascadeRendersAsPartsBracketJson) {
   // starting direction (the cylinder's x axis, as bracket.json's u axis),
   // so at a chord tolerance of 0.002 mm the STEP part's holes are the same
   // polygons and the two parts render alike.
-  const ImageT<double> coarse = render(machine, step_part("0.002").mesh({}), pose, n);
+  const ImageT<double> coarse = renderPaths(machine, step_part("0.002").mesh({}), pose, n);
   const double coarse_json = maxAbsDifference(coarse, json);
   EXPECT_LT(coarse_json, 0.002);
 
@@ -491,7 +450,7 @@ TEST(Step, BracketFromOpenCascadeRendersAsPartsBracketJson) {
   // itself differs from the true bracket by up to 0.0135 mm, at some 135
   // pixels where rays graze a hole's wall (a polygon's side cuts up to 0.001
   // mm into the circle), so the fine STEP part is that far from it there.
-  const ImageT<double> fine = render(machine, step_part("0.0001").mesh({}), pose, n);
+  const ImageT<double> fine = renderPaths(machine, step_part("0.0001").mesh({}), pose, n);
   const double fine_exact = maxAbsDifference(fine, exact);
   EXPECT_LT(fine_exact, 0.002);
   std::printf(

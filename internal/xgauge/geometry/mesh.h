@@ -102,7 +102,9 @@ inline constexpr double kWeldTolerance = 1e-9;
 // welding (a repeated vertex) are dropped with a warning. The welded mesh
 // must pass checkClosedMesh; one that is closed and consistent but faces
 // inward is flipped with a warning. Every other problem throws Error located
-// in the file `source`.
-TriangleMesh closedMeshFromSoup(const TriangleSoup& soup, const std::string& source);
+// in the file `source`. `kept`, when given, receives for every triangle of
+// the result the index of the soup triangle it came from (in order).
+TriangleMesh closedMeshFromSoup(const TriangleSoup& soup, const std::string& source,
+                                std::vector<uint32_t>* kept = nullptr);
 
 }  // namespace xgauge

@@ -173,6 +173,19 @@ class PartModel {
   // validate + evaluate + triangles.
   TriangleMesh mesh(std::span<const double> values) const;
 
+  // The values dimension `index` can take with every other dimension at
+  // nominal: the interval around nominal, within [min, max], where the
+  // constraints hold and the part can be built (tryEvaluate), found on a
+  // grid of kRangeGridSteps steps to each bound, then by bisection to 1e-9
+  // of the bounds' span. Each end says why it is there: "its min", "its
+  // max", a constraint's message or the fold.
+  struct DimensionRange {
+    double low = 0.0, high = 0.0;
+    std::string low_reason, high_reason;
+  };
+  static constexpr int kRangeGridSteps = 16;
+  DimensionRange buildableRange(int index) const;
+
   // Fixed when the model is loaded, outward at nominal values.
   const std::vector<Triangle>& triangles() const;
   size_t vertexCount() const;
@@ -185,6 +198,14 @@ class PartModel {
   struct Invalidity;
   std::optional<Invalidity> findInvalidity(std::span<const double> values) const;
   std::optional<Invalidity> findFold(std::span<const double> values, std::vector<Vec3>& out) const;
+  // invalidity(), then tryEvaluate().
+  std::optional<std::string> whyNot(std::span<const double> values,
+                                    std::vector<Vec3>& scratch) const;
+  // For parts whose dimensions move a STEP solid's faces: throws Error,
+  // located at the dimension in `path`, when a value on a grid over
+  // [min, max] that the constraints allow cannot be built (a face turns
+  // over), with the range that can (buildableRange).
+  void requireBuildableWithinBounds(const std::filesystem::path& path) const;
   PartModel(std::shared_ptr<const Definition> definition, std::unique_ptr<Evaluator> evaluator);
   // A fixed mesh read from `path` (an "stl" or "step" file, `type`).
   static PartModel fromFixedMesh(const std::filesystem::path& path, const char* type,

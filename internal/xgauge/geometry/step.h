@@ -29,8 +29,11 @@
 #pragma once
 
 #include "xgauge/geometry/mesh.h"
+#include "xgauge/geometry/surface.h"
 
 #include <filesystem>
+#include <string>
+#include <vector>
 
 namespace xgauge {
 
@@ -58,5 +61,34 @@ inline constexpr size_t kMaxStepTriangles = size_t{1} << 24;
 // of the ranges above (or not finite), or a tessellation of more than
 // kMaxStepTriangles triangles.
 TriangleMesh readStep(const std::filesystem::path& path, const StepTessellation& tessellation);
+
+// One face of a STEP solid: what `xgauge part faces` lists, and what a
+// dimension's face selector matches (part_model.h).
+struct StepFace {
+  int index = 0;             // 1-based, OpenCASCADE's face order ("face 3 of 6")
+  int entity = 0;            // the STEP entity it was read from (#42); 0 when unknown
+  std::string name;          // the name the file gives it; may be empty
+  Surface surface;           // kind kOther for a freeform surface
+  std::string surface_type;  // "plane", ..., "torus", or "B-spline", "Bezier", ...
+  // Analytic kinds: +1 when the solid's outward normal is
+  // surface.gradient(), -1 when it is the opposite (a hole's cylinder).
+  int outward = 1;
+  double area_mm2 = 0.0;                // of its triangles
+  Vec3 centroid_mm = Vec3::Zero();      // of its triangles, area-weighted
+  Vec3 normal = Vec3::Zero();           // mean outward normal of its triangles (unit or zero)
+};
+
+// A STEP solid with its faces: the mesh readStep makes, and for each of its
+// triangles the face it tessellates.
+struct StepSolid {
+  TriangleMesh mesh;
+  std::vector<StepFace> faces;          // faces[i].index == i + 1
+  std::vector<uint32_t> triangle_face;  // per mesh triangle, the face's position in `faces`
+  // "face 3 of 6 (#42 'top', plane)".
+  std::string describe(size_t face) const;
+};
+
+// readStep, keeping the faces. Throws as readStep.
+StepSolid readStepSolid(const std::filesystem::path& path, const StepTessellation& tessellation);
 
 }  // namespace xgauge

@@ -42,5 +42,6 @@ void addCharacterizeCommand(CLI::App& app, Commands& commands);
 void addInspectCommand(CLI::App& app, Commands& commands);
 void addSpcCommand(CLI::App& app, Commands& commands);
 void addExportCommand(CLI::App& app, Commands& commands);
+void addPartCommand(CLI::App& app, Commands& commands);
 
 }  // namespace xgauge::cli

@@ -37,7 +37,7 @@ int main(int argc, char** argv) {
                    cli::addNormalizeCommand, cli::addMeasureCommand, cli::addMaterialCommand,
                    cli::addCalibrateCommand, cli::addStudyCommand, cli::addSimulateCommand,
                    cli::addVerifyCommand, cli::addCharacterizeCommand, cli::addInspectCommand,
-                   cli::addSpcCommand, cli::addExportCommand})
+                   cli::addSpcCommand, cli::addExportCommand, cli::addPartCommand})
     add(app, commands);
 
   try {

@@ -170,7 +170,8 @@ class Resolver {
                                surfaceKindName(group.surface.kind), surfaceKindName(kind)));
       if (group.expressed != FaceGroup::Expressed::kNone)
         entry.fail(fmt::format("{}: {} is already given by {}", who,
-                               faced_.describeFace(group.faces[0]), faced_.movers(g)));
+                               faced_.describeFace(group.faces[0]),
+                               fmt::join(movers_[g], ", ")));
       group.expressed = expressed;
       group.first_scalar = first;
       group.where = entry.where();
@@ -533,8 +534,8 @@ std::shared_ptr<const FacedStep> resolveFaceMoves(StepSolid solid, double chord_
     if (!list.isArray()) list.fail("expected a list of {\"faces\", \"plane\" or \"cylinder\"}");
     for (size_t i = 0; i < list.size(); ++i) resolver.resolveSurface(list[i], i);
   }
-  resolver.requireOneDefinitionPerFace();
   resolver.finish();
+  resolver.requireOneDefinitionPerFace();
   return faced;
 }
 

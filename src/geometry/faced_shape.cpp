@@ -116,6 +116,7 @@ class FacedShape final : public Shape {
   }
 
   void vertexGroups() {
+    const double off_surface_limit = kFaceSelectionMm + 4.0 * faced_->chord_tolerance_mm;
     std::vector<std::vector<uint32_t>> of(vertex_count_);
     for (size_t t = 0; t < triangles_.size(); ++t) {
       const uint32_t g = faced_->face_group[faced_->solid.triangle_face[t]];
@@ -130,8 +131,15 @@ class FacedShape final : public Shape {
       for (const uint32_t g : of[v]) {
         vertex_groups_.push_back(g);
         const Surface& s = nominal_surfaces_[g];
-        nominal_values_.push_back(s.kind == SurfaceKind::kOther ? 0.0
-                                                                : s.value(nominal_vertices_[v]));
+        const double value = s.kind == SurfaceKind::kOther ? 0.0 : s.value(nominal_vertices_[v]);
+        // The tessellation's nodes lie on their faces; a surface that misses
+        // them is one this code reads wrongly, and moving it would be wrong.
+        if (faced_->groups[g].moves() && !(std::abs(value) <= off_surface_limit))
+          throw Error(fmt::format("{}: a vertex of its tessellation lies {:.3g} mm from its {} as "
+                                  "read; xgauge cannot move this face",
+                                  faced_->describeFace(faced_->groups[g].faces[0]), value,
+                                  surfaceKindName(s.kind)));
+        nominal_values_.push_back(value);
       }
     }
     linear_columns_.assign(vertex_groups_.size(), Vec3::Zero());

@@ -348,6 +348,12 @@ const std::vector<Dimension>& PartModel::dimensions() const { return definition_
 const std::vector<DeclaredCombination>& PartModel::combinations() const {
   return definition_->combinations;
 }
+PartModel::StepFaces PartModel::stepFaces() const {
+  const auto [faced, first_triangle] = definition_->shape->facedStep();
+  if (!faced) return {};
+  return {&faced->solid, first_triangle};
+}
+
 const std::vector<Triangle>& PartModel::triangles() const {
   return definition_->shape->triangles();
 }

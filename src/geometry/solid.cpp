@@ -170,6 +170,10 @@ Solid::Solid(const SolidSpec& spec, std::span<const double> nominal_scalars) {
     XG_CHECK(vertex_count_ < (uint64_t{1} << 32), "too many vertices");
     piece.placements = p.placements;
     piece.where = p.shape.where;
+    if (p.shape.faced) {
+      faced_ = p.shape.faced;
+      faced_first_triangle_ = piece.first_triangle;
+    }
     ends.push_back(piece.triangle_end);
     pieces_.push_back(std::move(piece));
   }

@@ -18,6 +18,7 @@
 #include <optional>
 #include <span>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace xgauge {
@@ -61,6 +62,9 @@ class Solid {
   size_t vertexCount() const { return vertex_count_; }
   // Null for a single piece: the part is that piece.
   const std::shared_ptr<const Csg>& csg() const { return csg_; }
+  // The STEP solid whose faces the dimensions move, and its first triangle
+  // in triangles(); null when there is none.
+  std::pair<const FacedStep*, size_t> facedStep() const { return {faced_.get(), faced_first_triangle_}; }
 
   // Vertex positions (mm, part frame) from the evaluated scalars; `out` has
   // vertexCount() elements. Allocates nothing.
@@ -94,6 +98,8 @@ class Solid {
   std::vector<Triangle> triangles_;
   size_t vertex_count_ = 0;
   std::shared_ptr<const Csg> csg_;
+  std::shared_ptr<const FacedStep> faced_;
+  size_t faced_first_triangle_ = 0;
 };
 
 }  // namespace xgauge

@@ -332,8 +332,39 @@ TriangleSoup tessellate(const FaceNames& names, const StepTessellation& tessella
 // Area, centroid, mean outward normal and, for analytic surfaces, which way
 // the outward normal points relative to Surface::gradient, from the face's
 // triangles.
+// A cone or torus as OCCT gives it may carry a face on a part that its
+// implicit function (Surface::value) does not describe: a cone's far nappe,
+// where the radius R + h tan(a) is negative, or the inner (lemon) part of a
+// torus whose tube crosses the axis. Such a surface is restated so that the
+// function is 0 on the face: the cone's radius and angle negated, the
+// torus's centre circle taken on the far side (a negative radius). Which one
+// the face lies on is decided over all its vertices: a vertex on the axis
+// fits both.
+void chooseSheets(const TriangleMesh& mesh, std::span<const uint32_t> triangle_face,
+                  std::vector<StepFace>& faces) {
+  std::vector<double> as_read(faces.size(), 0.0), restated(faces.size(), 0.0);
+  const auto flipped = [](Surface s) {
+    s.radius = -s.radius;
+    if (s.kind == SurfaceKind::kCone) s.semi_angle = -s.semi_angle;
+    return s;
+  };
+  for (size_t t = 0; t < mesh.triangles.size(); ++t) {
+    const size_t f = triangle_face[t];
+    const Surface& s = faces[f].surface;
+    if (s.kind != SurfaceKind::kCone && s.kind != SurfaceKind::kTorus) continue;
+    const Surface other = flipped(s);
+    for (const uint32_t v : mesh.triangles[t]) {
+      as_read[f] += std::abs(s.value(mesh.vertices[v]));
+      restated[f] += std::abs(other.value(mesh.vertices[v]));
+    }
+  }
+  for (size_t f = 0; f < faces.size(); ++f)
+    if (restated[f] < as_read[f]) faces[f].surface = flipped(faces[f].surface);
+}
+
 void describeTriangles(const TriangleMesh& mesh, std::span<const uint32_t> triangle_face,
                        std::vector<StepFace>& faces) {
+  chooseSheets(mesh, triangle_face, faces);
   std::vector<Vec3> weighted_centroid(faces.size(), Vec3::Zero());
   std::vector<Vec3> area_normal(faces.size(), Vec3::Zero());
   std::vector<double> along_gradient(faces.size(), 0.0);

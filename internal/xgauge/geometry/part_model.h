@@ -70,6 +70,7 @@
 #include "xgauge/core/transform.h"
 #include "xgauge/geometry/csg.h"
 #include "xgauge/geometry/mesh.h"
+#include "xgauge/geometry/step.h"
 
 #include <filesystem>
 #include <map>
@@ -185,6 +186,16 @@ class PartModel {
   };
   static constexpr int kRangeGridSteps = 16;
   DimensionRange buildableRange(int index) const;
+
+  // For a part whose dimensions move a STEP solid's faces (docs/formats.md,
+  // "Dimensions on faces"): that solid, its faces and which face each of its
+  // triangles tessellates; its triangles are triangles()[first_triangle,
+  // first_triangle + solid->mesh.triangles.size()). Null solid otherwise.
+  struct StepFaces {
+    const StepSolid* solid = nullptr;
+    size_t first_triangle = 0;
+  };
+  StepFaces stepFaces() const;
 
   // Fixed when the model is loaded, outward at nominal values.
   const std::vector<Triangle>& triangles() const;

@@ -27,7 +27,10 @@ struct Surface {
   Vec3 origin = Vec3::Zero();
   // plane: the unit normal; cylinder, cone, torus: the unit axis direction.
   Vec3 axis = Vec3::UnitZ();
-  double radius = 0.0;        // cylinder, sphere, cone at `origin`; torus: the centre circle's
+  // cylinder, sphere; cone: at `origin` (negative: the far nappe, see
+  // semi_angle); torus: the centre circle's (negative: a tube that crosses
+  // the axis, as a dome, taken from the circle's far side).
+  double radius = 0.0;
   double minor_radius = 0.0;  // torus: the tube's
   // cone: radians in (-pi/2, pi/2), not 0: the radius grows by tan(semi_angle)
   // per mm along `axis`.

@@ -219,13 +219,17 @@ PartCheckSummary checkPartOrThrow(const PartCheckOptions& options) {
         return faces;
       }();
       for (const ViewDirection& view : standardViews()) {
+        const auto black = [](int) { return Rgb{0, 0, 0}; };
         PartPicture picture = drawPart(nominal, part.triangles(), region, colour, view, frame,
                                        kCheckPicturePx);
+        const PartPicture unchanged =
+            drawPart(nominal, part.triangles(), outline_regions, black, view, frame, kCheckPicturePx);
         for (size_t k = 0; k < displaced.size(); ++k) {
           const PartPicture other =
-              drawPart(displaced[k], part.triangles(), outline_regions,
-                       [](int) { return Rgb{0, 0, 0}; }, view, frame, kCheckPicturePx);
-          overlayOutline(picture, other, steps[k] < 0 ? Rgb{33, 102, 172} : Rgb{178, 24, 43});
+              drawPart(displaced[k], part.triangles(), outline_regions, black, view, frame,
+                       kCheckPicturePx);
+          overlayOutline(picture, other, &unchanged,
+                         steps[k] < 0 ? Rgb{33, 102, 172} : Rgb{178, 24, 43});
         }
         section.pictures.push_back(std::move(picture));
       }

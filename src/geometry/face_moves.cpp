@@ -292,9 +292,15 @@ class Resolver {
       distance.emplace_back(nearest, f);
     }
     std::sort(distance.begin(), distance.end());
+    // Faces that continue one surface (coplanar faces a boolean left
+    // split, a cylinder's halves) count as one: the group moves whole.
     std::vector<size_t> on;
     for (const auto& [d, f] : distance)
-      if (d <= kFaceSelectionMm) on.push_back(f);
+      if (d <= kFaceSelectionMm &&
+          std::none_of(on.begin(), on.end(), [&](size_t other) {
+            return faced_.face_group[other] == faced_.face_group[f];
+          }))
+        on.push_back(f);
     const std::string where =
         fmt::format("({}, {}, {})", point.x(), point.y(), point.z());
     if (on.empty())

@@ -160,15 +160,23 @@ PartPicture drawPart(std::span<const Vec3> vertices, std::span<const Triangle> t
   return picture;
 }
 
-void overlayOutline(PartPicture& picture, const PartPicture& other, const Rgb& colour) {
+namespace {
+
+bool isBorder(const PartPicture& p, int x, int y) {
+  const size_t i = static_cast<size_t>(y) * p.width + x;
+  return (x + 1 < p.width && p.region[i + 1] != p.region[i]) ||
+         (y + 1 < p.height && p.region[i + p.width] != p.region[i]);
+}
+
+}  // namespace
+
+void overlayOutline(PartPicture& picture, const PartPicture& other, const PartPicture* unchanged,
+                    const Rgb& colour) {
   XG_CHECK(picture.width == other.width && picture.height == other.height, "pictures differ");
   for (int y = 0; y < other.height; ++y)
     for (int x = 0; x < other.width; ++x) {
+      if (!isBorder(other, x, y) || (unchanged && isBorder(*unchanged, x, y))) continue;
       const size_t i = static_cast<size_t>(y) * other.width + x;
-      const bool border =
-          (x + 1 < other.width && other.region[i + 1] != other.region[i]) ||
-          (y + 1 < other.height && other.region[i + other.width] != other.region[i]);
-      if (!border) continue;
       for (int k = 0; k < 3; ++k) picture.rgb[3 * i + k] = colour[k];
     }
 }

@@ -62,8 +62,11 @@ PartPicture drawPart(std::span<const Vec3> vertices, std::span<const Triangle> t
 
 // Paints the borders of `other`'s regions (where a pixel's region differs
 // from its right or lower neighbour's, background included) onto
-// `picture` in `colour`: another state of the part drawn over this one.
-void overlayOutline(PartPicture& picture, const PartPicture& other, const Rgb& colour);
+// `picture` in `colour`, except where `unchanged` (the same regions in
+// another state, may be null) has a border too: what moved, drawn over
+// this picture.
+void overlayOutline(PartPicture& picture, const PartPicture& other, const PartPicture* unchanged,
+                    const Rgb& colour);
 
 // PNG bytes of the picture.
 std::string encodePicture(const PartPicture& picture);

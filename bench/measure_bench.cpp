@@ -63,7 +63,7 @@ Run measureShots(const nlohmann::json& settings, const DatasetTruth& truth,
                  std::vector<double>* solution = nullptr,
                  std::optional<MeasurementInputs>* kept = nullptr, const fs::path& outputs = {}) {
   const std::string id = shots[0] + "-" + shots[1];
-  const nlohmann::json job = studyJob(settings, truth, shots, id, "machine.json", "material.json");
+  const nlohmann::json job = studyJob(settings, truth, truth.part_file, shots, id, "machine.json", "material.json");
   MeasurementInputs run_inputs = studyRunInputs(job, inputs, settings_file, prepared);
   const auto start = std::chrono::steady_clock::now();
   ForwardModel model(run_inputs);
@@ -168,7 +168,8 @@ int main(int argc, char** argv) {
       // does (the runs below share `prepared`, which this fills).
       settings["schedule"] = schedules.front();
       const nlohmann::json job =
-          studyJob(settings, truth, pairs.front(), "load", "machine.json", "material.json");
+          studyJob(settings, truth, truth.part_file, pairs.front(), "load", "machine.json",
+                   "material.json");
       const auto start = std::chrono::steady_clock::now();
       studyRunInputs(job, inputs, settings_file, prepared);
       std::printf("reading and preparing %s and %s: %.2f s\n", pairs.front()[0].c_str(),

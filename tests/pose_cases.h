@@ -176,7 +176,7 @@ inline PoseOutcome runCase(const PoseCase& c, const fs::path& source, const fs::
   const StudyInputs inputs = prepareStudyInputs(truth, settings, settings_file);
   PreparedShots prepared(inputs.machine);
   const nlohmann::json job =
-      studyJob(settings, truth, measured, "case", "machine.json", "material.json");
+      studyJob(settings, truth, truth.part_file, measured, "case", "machine.json", "material.json");
   const MeasurementInputs run_inputs = studyRunInputs(job, inputs, settings_file, prepared);
   const auto start = std::chrono::steady_clock::now();
   ForwardModel model(run_inputs);

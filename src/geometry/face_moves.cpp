@@ -162,7 +162,11 @@ class Resolver {
       expressions(cylinder->at("axis"), 3);
       scalars_.push_back(readExpression(cylinder->at("diameter")));
     }
-    for (uint32_t s = first; s < scalars_.size(); ++s) faced_.scalar_names.push_back(who);
+    for (uint32_t s = first; s < scalars_.size(); ++s) {
+      faced_.scalar_names.push_back(who);
+      faced_.scalar_ranges.emplace_back(std::numeric_limits<double>::quiet_NaN(),
+                                        std::numeric_limits<double>::quiet_NaN());
+    }
     for (const uint32_t g : groups) {
       FaceGroup& group = faced_.groups[g];
       if (group.surface.kind != kind)
@@ -208,6 +212,8 @@ class Resolver {
     const auto index = static_cast<uint32_t>(scalars_.size());
     scalars_.push_back({sources_.dimensions[dimension].name, node.where()});
     faced_.scalar_names.push_back(sources_.dimensions[dimension].name);
+    faced_.scalar_ranges.emplace_back(sources_.dimensions[dimension].min,
+                                      sources_.dimensions[dimension].max);
     dimension_scalar_.emplace(dimension, index);
     return index;
   }

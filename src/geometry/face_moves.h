@@ -43,6 +43,7 @@ struct FaceMoveSources {
   struct Dimension {
     std::string name;
     double nominal = 0.0;
+    double min = 0.0, max = 0.0;
     std::string unit;
   };
   struct Move {
@@ -99,6 +100,9 @@ struct FacedStep {
   // Per scalar of the shape: the dimension it is ("thickness"), or, for a
   // "surfaces" entry's scalars, the entry ("surfaces[2]").
   std::vector<std::string> scalar_names;
+  // Per scalar of the shape: the dimension's [min, max]; NaN for a
+  // "surfaces" entry's expressions (whose range is not known).
+  std::vector<std::pair<double, double>> scalar_ranges;
   double size_mm = 0.0;             // the solid's bounding box diagonal
   double chord_tolerance_mm = 0.0;  // of its tessellation
   // Per group: the dimensions and "surfaces" entries that move it.

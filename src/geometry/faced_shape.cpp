@@ -1,10 +1,13 @@
 #include "faced_shape.h"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/SparseCholesky>
 #include <fmt/format.h>
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <utility>
 
 namespace xgauge {
 namespace {
@@ -16,6 +19,15 @@ constexpr double kMeetToleranceMm = 1e-6;
 // Directions with a smaller eigenvalue of the gradients' normal matrix than
 // this times the largest are left alone (tangent surfaces, parallel planes).
 constexpr double kRankCutoff = 1e-10;
+// The pull of a free vertex towards its nominal place, beside its
+// neighbours' unit weights: what keeps a region without anchors in place.
+constexpr double kHarmonicPull = 1e-6;
+constexpr uint32_t kNoGroup = UINT32_MAX;
+// A boundary vertex slides along a face when it leaves the face's own move
+// by more than kSlideMm; the free vertices reach kBandFactor times the
+// largest slide into the face.
+constexpr double kSlideMm = 1e-9;
+constexpr double kBandFactor = 3.0;
 
 // The least-norm solution x of (sum g g^T) x = b, for the normal matrix
 // `a` = sum g g^T of unit gradients g.
@@ -42,13 +54,19 @@ class FacedShape final : public Shape {
     nominal_vertices_ = solid.mesh.vertices;
     nominalSurfaces();
     vertexGroups();
-    for (uint32_t v = 0; v < vertex_count_; ++v) plan(v);
+    const std::vector<char> touched = touchedGroups();
+    for (uint32_t v = 0; v < vertex_count_; ++v) plan(v, touched);
+    harmonicSystems();
+    outlines();
     for (const Triangle& t : triangles_) nominal_normals_.push_back(normalOf(nominal_vertices_, t));
   }
 
   void place(std::span<const double> s, std::span<Vec3> out) const override {
     const Moved& moved = surfacesFor(s);
-    for (uint32_t v = 0; v < vertex_count_; ++v) out[v] = placeVertex(v, moved);
+    for (uint32_t v = 0; v < vertex_count_; ++v)
+      if (plans_[v].method != Method::kHarmonic) out[v] = placeVertex(v, moved);
+    placeFree(edges_, moved, out);
+    placeFree(insides_, moved, out);
   }
 
   std::optional<std::string> placementProblem(std::span<const double> s,
@@ -59,11 +77,22 @@ class FacedShape final : public Shape {
       if (!plan.check || !anyChanged(v, moved)) continue;
       if (auto problem = meetProblem(v, vertices[v], moved)) return problem;
     }
+    std::vector<char> planar_checked(faced_->groups.size(), 0);
     for (size_t t = 0; t < triangles_.size(); ++t) {
       const Vec3& n0 = nominal_normals_[t];
       if (n0.isZero()) continue;
       if (normalOf(vertices, triangles_[t]).dot(n0) > 0.0) continue;
       const uint32_t face = faced_->solid.triangle_face[t];
+      // Inside a plane, a folded triangle changes no path (each ray crosses
+      // the plane once and counts the triangles there with their signs:
+      // once inside the face's outline, whatever the fold), as long as the
+      // outline itself stays a simple polygon of the same orientation.
+      const uint32_t group = faced_->face_group[face];
+      if (nominal_surfaces_[group].kind == SurfaceKind::kPlane) {
+        if (planar_checked[group]) continue;
+        planar_checked[group] = 1;
+        if (outlineIsSimple(group, vertices, moved.surfaces[group])) continue;
+      }
       if (faced_->groups[faced_->face_group[face]].moves())
         return fmt::format("{} turns over (moved by {})", faced_->describeFace(face),
                            movedBy(triangles_[t]));
@@ -75,7 +104,16 @@ class FacedShape final : public Shape {
   }
 
  private:
-  enum class Method : uint8_t { kFixed, kLinear, kNewton, kPinned };
+  // kFixed: nothing around the vertex moves. Anchors, placed from their own
+  // surfaces: kLinear (planes only, at a corner), kNewton (at a corner, or on
+  // a curved surface that moves), kPinned (on a freeform face). kHarmonic:
+  // the others (on an edge or inside a face whose boundary moves), started
+  // from the harmonic interpolation of the anchors' displacements over the
+  // mesh, then placed on their surfaces: an edge's vertices stay spread
+  // between its moved ends, a face's inside follows its moved boundary.
+  // kCarried: inside a face, far from any boundary that slides along it:
+  // the face's own move carries it.
+  enum class Method : uint8_t { kFixed, kLinear, kNewton, kPinned, kHarmonic, kCarried };
   struct Plan {
     Method method = Method::kFixed;
     bool check = false;  // placementProblem() tests that its surfaces still meet there
@@ -149,23 +187,100 @@ class FacedShape final : public Shape {
     return std::span<const uint32_t>(vertex_groups_).subspan(plans_[v].first, plans_[v].count);
   }
 
+  // Per group: whether any vertex of its faces can move (a vertex of it lies
+  // on a surface that moves).
+  std::vector<char> touchedGroups() const {
+    std::vector<char> touched(faced_->groups.size(), 0);
+    for (uint32_t v = 0; v < vertex_count_; ++v) {
+      bool moves = false;
+      for (const uint32_t g : groupsOf(v)) moves = moves || faced_->groups[g].moves();
+      if (moves)
+        for (const uint32_t g : groupsOf(v)) touched[g] = 1;
+    }
+    return touched;
+  }
+
+  // Each plane's outline: the directed mesh edges of its triangles whose
+  // other side belongs to another surface.
+  void outlines() {
+    std::map<std::pair<uint32_t, uint32_t>, uint32_t> group_of_edge;
+    for (size_t t = 0; t < triangles_.size(); ++t)
+      for (int k = 0; k < 3; ++k)
+        group_of_edge[{triangles_[t][k], triangles_[t][(k + 1) % 3]}] =
+            faced_->face_group[faced_->solid.triangle_face[t]];
+    outline_.resize(faced_->groups.size());
+    for (const auto& [edge, group] : group_of_edge) {
+      if (nominal_surfaces_[group].kind != SurfaceKind::kPlane) continue;
+      const auto twin = group_of_edge.find({edge.second, edge.first});
+      if (twin != group_of_edge.end() && twin->second == group) continue;
+      outline_[group].push_back(edge);
+    }
+  }
+
+  // Whether the plane's outline, in the moved plane, is a simple polygon
+  // (no two of its edges that share no vertex cross or touch) enclosing
+  // area with its nominal orientation.
+  bool outlineIsSimple(uint32_t group, std::span<const Vec3> vertices, const Surface& plane) const {
+    const Vec3 n = plane.axis;
+    const Vec3 u = (std::abs(n.x()) < 0.9 ? Vec3::UnitX() : Vec3::UnitY()).cross(n).normalized();
+    const Vec3 w = n.cross(u);
+    const auto flat = [&](uint32_t v) { return Vec2(vertices[v].dot(u), vertices[v].dot(w)); };
+    const auto& edges = outline_[group];
+    double area = 0.0, nominal_area = 0.0;
+    for (const auto& [a, b] : edges) {
+      const Vec2 p = flat(a), q = flat(b);
+      area += p.x() * q.y() - q.x() * p.y();
+      const Vec2 p0(nominal_vertices_[a].dot(u), nominal_vertices_[a].dot(w));
+      const Vec2 q0(nominal_vertices_[b].dot(u), nominal_vertices_[b].dot(w));
+      nominal_area += p0.x() * q0.y() - q0.x() * p0.y();
+    }
+    if (!(area * nominal_area > 0.0)) return false;
+    const auto cross = [](const Vec2& o, const Vec2& a, const Vec2& b) {
+      return (a.x() - o.x()) * (b.y() - o.y()) - (a.y() - o.y()) * (b.x() - o.x());
+    };
+    for (size_t i = 0; i < edges.size(); ++i) {
+      const Vec2 a = flat(edges[i].first), b = flat(edges[i].second);
+      const Vec2 lo = a.cwiseMin(b), hi = a.cwiseMax(b);
+      for (size_t j = i + 1; j < edges.size(); ++j) {
+        if (edges[j].first == edges[i].first || edges[j].first == edges[i].second ||
+            edges[j].second == edges[i].first || edges[j].second == edges[i].second)
+          continue;
+        const Vec2 c = flat(edges[j].first), d = flat(edges[j].second);
+        if ((c.cwiseMax(d) - lo).minCoeff() < 0.0 || (hi - c.cwiseMin(d)).minCoeff() < 0.0)
+          continue;
+        const double d1 = cross(c, d, a), d2 = cross(c, d, b);
+        const double d3 = cross(a, b, c), d4 = cross(a, b, d);
+        if (d1 * d2 <= 0.0 && d3 * d4 <= 0.0) return false;
+      }
+    }
+    return true;
+  }
+
   // How vertex v is placed (plans_ holds its groups already).
-  void plan(uint32_t v) {
+  void plan(uint32_t v, const std::vector<char>& touched) {
     Plan& plan = plans_[v];
     const std::vector<FaceGroup>& groups = faced_->groups;
-    bool moves = false, freeform = false, planes_only = true;
+    bool freeform = false, planes_only = true, near_moves = false, curved_moves = false;
     for (const uint32_t g : groupsOf(v)) {
-      moves = moves || groups[g].moves();
-      freeform = freeform || nominal_surfaces_[g].kind == SurfaceKind::kOther;
-      planes_only = planes_only && nominal_surfaces_[g].kind == SurfaceKind::kPlane &&
+      const SurfaceKind kind = nominal_surfaces_[g].kind;
+      freeform = freeform || kind == SurfaceKind::kOther;
+      near_moves = near_moves || touched[g];
+      curved_moves = curved_moves || (kind != SurfaceKind::kPlane && groups[g].moves());
+      planes_only = planes_only && kind == SurfaceKind::kPlane &&
                     groups[g].expressed == FaceGroup::Expressed::kNone;
     }
-    if (!moves) {
+    if (!near_moves) {
       plan.method = Method::kFixed;
       return;
     }
     if (freeform) {
       plan.method = Method::kPinned;
+      plan.check = true;
+      return;
+    }
+    // Inside a face, and on an edge that no moving curved surface carries.
+    if (plan.count == 1 || (plan.count == 2 && !curved_moves)) {
+      plan.method = Method::kHarmonic;
       plan.check = true;
       return;
     }
@@ -198,6 +313,220 @@ class FacedShape final : public Shape {
     // More planes than the rank: they meet at the vertex only while they
     // move consistently.
     plan.check = rank < normals.rows();
+  }
+
+  // A Laplace problem over some free vertices: each one's displacement the
+  // weighted mean of its neighbours' (weights of the mesh at nominal
+  // values), the anchors among them given. A small diagonal term keeps a
+  // region without anchors (a closed edge without corners) at its nominal
+  // place.
+  struct Harmonic {
+    std::vector<uint32_t> vertices;          // the free vertices, by row
+    // Per row, the surface whose own move the row's displacement is taken
+    // beyond (the face it lies inside); kNoGroup: none (on an edge).
+    std::vector<uint32_t> group;
+    std::vector<uint32_t> anchor_first{0};   // per row, its anchors in `anchors`
+    std::vector<std::pair<uint32_t, double>> anchors;  // (vertex, weight)
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> system;
+
+    // `weights[v]`: (neighbour, weight) pairs v's displacement follows,
+    // symmetric (w(v, n) == w(n, v) where both are free); `row` maps a
+    // vertex to its row or -1 (an anchor).
+    void build(const std::vector<std::map<uint32_t, double>>& weights,
+               const std::vector<int32_t>& row) {
+      if (vertices.empty()) return;
+      std::vector<Eigen::Triplet<double>> entries;
+      for (const uint32_t v : vertices) {
+        const int32_t r = row[v];
+        double total = 0.0;
+        for (const auto& [n, w] : weights[v]) total += w;
+        entries.emplace_back(r, r, total * (1.0 + kHarmonicPull));
+        for (const auto& [n, w] : weights[v]) {
+          if (row[n] >= 0) {
+            entries.emplace_back(r, row[n], -w);
+          } else {
+            anchors.emplace_back(n, w);
+          }
+        }
+        anchor_first.push_back(static_cast<uint32_t>(anchors.size()));
+      }
+      const auto n = static_cast<Eigen::Index>(vertices.size());
+      Eigen::SparseMatrix<double> laplacian(n, n);
+      laplacian.setFromTriplets(entries.begin(), entries.end());
+      laplacian.makeCompressed();
+      system.compute(laplacian);
+      XG_CHECK(system.info() == Eigen::Success, "a Laplacian of the free vertices");
+    }
+  };
+
+  // The free vertices' two Laplace problems. On an edge (two surfaces): its
+  // neighbours along the same edge, weighted by 1 / length, so that the
+  // edge's vertices stay spread by arc length between the corners that end
+  // it. Inside a face: all its neighbours with mean value weights (Floater
+  // 2003: tan(a/2) / length summed over the angles a at the vertex beside
+  // each edge), made symmetric by averaging the edge's two ends' (so that
+  // one sparse Cholesky factor solves them): positive, so a vertex stays
+  // within what its neighbours span, and close to harmonic on a graded
+  // mesh, where uniform weights leave the small triangles along a moved edge
+  // behind. Displacements do not spread across an edge from one face into
+  // another.
+  void harmonicSystems() {
+    const auto& p = nominal_vertices_;
+    const auto contains = [&](uint32_t n, std::span<const uint32_t> groups) {
+      const auto of = groupsOf(n);
+      return std::all_of(groups.begin(), groups.end(), [&](uint32_t g) {
+        return std::find(of.begin(), of.end(), g) != of.end();
+      });
+    };
+    // Along edges: 1 / length.
+    std::vector<std::map<uint32_t, double>> weights(vertex_count_);
+    std::vector<int32_t> edge_row(vertex_count_, -1), inside_row(vertex_count_, -1);
+    for (uint32_t v = 0; v < vertex_count_; ++v)
+      if (plans_[v].method == Method::kHarmonic && plans_[v].count == 2) {
+        edge_row[v] = static_cast<int32_t>(edges_.vertices.size());
+        edges_.vertices.push_back(v);
+        edges_.group.push_back(kNoGroup);
+      }
+    for (const Triangle& t : triangles_)
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t i = t[k];
+        if (edge_row[i] < 0) continue;
+        for (const uint32_t n : {t[(k + 1) % 3], t[(k + 2) % 3]})
+          if (contains(n, groupsOf(i))) weights[i][n] = 1.0 / std::max((p[n] - p[i]).norm(), 1e-12);
+      }
+    edges_.build(weights, edge_row);
+
+    // Inside faces: only where the face's boundary can slide along it.
+    bandInsides();
+    for (uint32_t v = 0; v < vertex_count_; ++v)
+      if (plans_[v].method == Method::kHarmonic && plans_[v].count == 1) {
+        inside_row[v] = static_cast<int32_t>(insides_.vertices.size());
+        insides_.vertices.push_back(v);
+        insides_.group.push_back(groupsOf(v)[0]);
+      }
+    // Mean value weights at every corner of every triangle with a free
+    // vertex inside a face; each free vertex takes the mean of the two ends'
+    // weight for each of its edges.
+    std::vector<std::map<uint32_t, double>> mean_value(vertex_count_);
+    for (const Triangle& t : triangles_)
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t i = t[k], j = t[(k + 1) % 3], l = t[(k + 2) % 3];
+        if (inside_row[i] < 0 && inside_row[j] < 0 && inside_row[l] < 0) continue;
+        const Vec3 a = p[j] - p[i], b = p[l] - p[i];
+        const double half = std::tan(0.5 * std::atan2(a.cross(b).norm(), a.dot(b)));
+        mean_value[i][j] += half / std::max(a.norm(), 1e-12);
+        mean_value[i][l] += half / std::max(b.norm(), 1e-12);
+      }
+    for (const Triangle& t : triangles_)
+      for (int k = 0; k < 3; ++k) {
+        const uint32_t i = t[k];
+        if (inside_row[i] < 0) continue;
+        for (const uint32_t n : {t[(k + 1) % 3], t[(k + 2) % 3]})
+          weights[i][n] = 0.5 * (mean_value[i][n] + mean_value[n][i]);
+      }
+    insides_.build(weights, inside_row);
+  }
+
+  // Which vertices inside faces need the Laplace problem. A face carried
+  // whole by its own move (a translated hole, a grown cylinder) needs none:
+  // its inside follows that move exactly. Where a face's boundary slides
+  // along it, each dimension is tried at its min and its max (the others at
+  // nominal) and the boundary's slide recorded: the vertices inside the face
+  // within kBandFactor times the face's largest slide (the sum over the
+  // dimensions) of a boundary vertex that slides are free; those further in
+  // follow the face's own move (kCarried). A face next to one given by
+  // expressions, whose range is unknown, is free throughout.
+  void bandInsides() {
+    const size_t groups = faced_->groups.size();
+    std::vector<double> reach(groups, 0.0);
+    std::vector<char> sliding(vertex_count_, 0), whole(groups, 0);
+    for (uint32_t v = 0; v < vertex_count_; ++v)
+      for (const uint32_t g : groupsOf(v))
+        if (faced_->groups[g].expressed != FaceGroup::Expressed::kNone)
+          for (const uint32_t h : groupsOf(v)) whole[h] = 1;
+    const auto is_inside = [&](uint32_t v) {
+      return plans_[v].method == Method::kHarmonic && plans_[v].count == 1;
+    };
+    std::vector<Vec3> out;
+    for (size_t s = 0; s < nominal_scalars_.size(); ++s) {
+      const auto [low, high] = faced_->scalar_ranges[s];
+      if (!std::isfinite(low) || !std::isfinite(high)) continue;
+      std::vector<double> slide(groups, 0.0);
+      for (const double value : {low, high}) {
+        std::vector<double> scalars = nominal_scalars_;
+        scalars[s] = value;
+        const Moved& moved = surfacesFor(scalars);
+        out = nominal_vertices_;
+        for (uint32_t v = 0; v < vertex_count_; ++v)
+          if (plans_[v].method != Method::kHarmonic) out[v] = placeVertex(v, moved);
+        placeFree(edges_, moved, out);
+        for (const Triangle& t : triangles_)
+          for (int k = 0; k < 3; ++k) {
+            const uint32_t v = t[k];
+            if (!is_inside(v)) continue;
+            const uint32_t g = groupsOf(v)[0];
+            for (const uint32_t n : {t[(k + 1) % 3], t[(k + 2) % 3]}) {
+              if (is_inside(n)) continue;
+              const double d = (out[n] - nominal_vertices_[n] - ownMove(g, n, moved)).norm();
+              if (!(d > kSlideMm)) continue;
+              sliding[n] = 1;
+              slide[g] = std::max(slide[g], d);
+            }
+          }
+      }
+      for (size_t g = 0; g < groups; ++g) reach[g] += slide[g];
+    }
+    // Each inside vertex's distance to the nearest sliding vertex of its face.
+    std::vector<std::vector<uint32_t>> sliders(groups);
+    for (uint32_t v = 0; v < vertex_count_; ++v)
+      if (sliding[v])
+        for (const uint32_t g : groupsOf(v)) sliders[g].push_back(v);
+    for (uint32_t v = 0; v < vertex_count_; ++v) {
+      if (!is_inside(v)) continue;
+      const uint32_t g = groupsOf(v)[0];
+      if (whole[g]) continue;
+      const double band = kBandFactor * reach[g];
+      bool near = false;
+      for (const uint32_t n : sliders[g])
+        if ((nominal_vertices_[n] - nominal_vertices_[v]).squaredNorm() <= band * band) {
+          near = true;
+          break;
+        }
+      if (!near) plans_[v].method = Method::kCarried, plans_[v].check = false;
+    }
+  }
+
+  // The free vertices of one Laplace problem: what the anchors (in `out`
+  // already) moved beyond their curved surfaces' own moves (start())
+  // interpolated, added to each free vertex's own start, then each vertex
+  // placed on its surfaces from there. A face carried whole by its surface
+  // (a translated hole) gives nothing to interpolate; a face whose edge
+  // moves along it (a chamfer's, as its shank grows) spreads that move over
+  // its inside.
+  void placeFree(const Harmonic& h, const Moved& moved, std::span<Vec3> out) const {
+    if (h.vertices.empty()) return;
+    thread_local Eigen::MatrixX3d rhs, displacement;
+    rhs.setZero(static_cast<Eigen::Index>(h.vertices.size()), 3);
+    bool any = false;
+    for (size_t i = 0; i < h.vertices.size(); ++i)
+      for (uint32_t k = h.anchor_first[i]; k < h.anchor_first[i + 1]; ++k) {
+        const auto [a, weight] = h.anchors[k];
+        const Vec3 d = out[a] - nominal_vertices_[a] - ownMove(h.group[i], a, moved);
+        if (d.isZero()) continue;
+        rhs.row(static_cast<Eigen::Index>(i)) += weight * d.transpose();
+        any = true;
+      }
+    if (any) {
+      displacement = h.system.solve(rhs);
+    } else {
+      displacement.setZero(rhs.rows(), 3);
+    }
+    for (size_t i = 0; i < h.vertices.size(); ++i) {
+      const uint32_t v = h.vertices[i];
+      const Vec3 from = nominal_vertices_[v] + ownMove(h.group[i], v, moved) +
+                        displacement.row(static_cast<Eigen::Index>(i)).transpose();
+      out[v] = any || anyChanged(v, moved) ? newton(v, moved, from) : nominal_vertices_[v];
+    }
   }
 
   const Moved& surfacesFor(std::span<const double> s) const {
@@ -266,11 +595,29 @@ class FacedShape final : public Shape {
           if (nominal_surfaces_[g].kind == SurfaceKind::kOther) return p0 + moved.translation[g];
         return p0;
       case Method::kNewton:
-        return newton(v, moved);
+        return newton(v, moved, start(v, moved));
+      case Method::kCarried:
+        return p0 + ownMove(groups[0], v, moved);
       case Method::kFixed:
+      case Method::kHarmonic:
         break;
     }
     return p0;
+  }
+
+  // What surface `group`'s own move does to vertex v's nominal place: a
+  // translation carries it, a growth moves it along the surface's normal (a
+  // plane's: its shift along its normal). Zero for kNoGroup and for a
+  // surface given by expressions.
+  Vec3 ownMove(uint32_t group, uint32_t v, const Moved& moved) const {
+    if (group == kNoGroup || !moved.changed[group] ||
+        faced_->groups[group].expressed != FaceGroup::Expressed::kNone)
+      return Vec3::Zero();
+    const Surface& nominal = nominal_surfaces_[group];
+    if (nominal.kind == SurfaceKind::kPlane)
+      return nominal.axis * (nominal.axis.dot(moved.translation[group]) + moved.growth[group]);
+    if (nominal.kind == SurfaceKind::kOther) return moved.translation[group];
+    return moved.translation[group] + moved.growth[group] * nominal.gradient(nominal_vertices_[v]);
   }
 
   // The start: the mean of what the vertex's curved surfaces' own moves do
@@ -291,10 +638,20 @@ class FacedShape final : public Shape {
     return curved > 0 ? Vec3(p0 + sum / curved) : p0;
   }
 
-  Vec3 newton(uint32_t v, const Moved& moved) const {
+  Vec3 newton(uint32_t v, const Moved& moved, const Vec3& from) const {
     const auto groups = groupsOf(v);
     const double* nominal_value = nominal_values_.data() + plans_[v].first;
-    Vec3 q = start(v, moved);
+    Vec3 q = from;
+    if (groups.size() == 1) {
+      // One surface: its value is the distance along its unit gradient (for
+      // planes, cylinders, spheres and tori exactly; for cones while the
+      // foot stays on the nappe), so one step along the gradient lands on
+      // it; placementProblem() checks that it did.
+      const Surface& s = moved.surfaces[groups[0]];
+      const double r = s.value(q) - nominal_value[0];
+      if (std::abs(r) > kNewtonToleranceMm) q -= r * s.gradient(q);
+      return q;
+    }
     for (int step = 0; step < kMaxNewtonSteps; ++step) {
       Mat3 normal = Mat3::Zero();
       Vec3 rhs = Vec3::Zero();
@@ -381,6 +738,8 @@ class FacedShape final : public Shape {
   std::vector<double> nominal_values_;     // aligned with vertex_groups_: surface value at p0
   std::vector<Vec3> linear_columns_;       // aligned with vertex_groups_: pinv(N)'s columns
   std::vector<Vec3> nominal_normals_;      // per triangle, unnormalised
+  Harmonic edges_, insides_;  // the free vertices (harmonicSystems())
+  std::vector<std::vector<std::pair<uint32_t, uint32_t>>> outline_;  // per plane group
 };
 
 }  // namespace

@@ -37,6 +37,7 @@ struct PartModel::Definition {
   std::vector<ExpressionSource> scalars;  // the solid's, see SolidSpec
   std::unique_ptr<const Solid> shape;
   bool faced = false;  // a STEP solid whose faces the dimensions move
+  std::map<std::string, std::string> shape_files;  // path -> SHA-256
 
   // "width=20.977 mm, thickness=13.02 mm" for error messages.
   std::string describe(std::span<const double> values) const {
@@ -236,7 +237,8 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
                               dimension.min, dimension.max));
       if (const auto tolerance = item.find("tolerance"))
         dimension.tolerance = readTolerance(*tolerance, dimension);
-      faces.dimensions.push_back({dimension.name, dimension.nominal, dimension.unit});
+      faces.dimensions.push_back(
+          {dimension.name, dimension.nominal, dimension.min, dimension.max, dimension.unit});
       readFaceMoves(item, faces);
       d.symbols.variables.push_back(dimension.name);
       d.dimensions.push_back(std::move(dimension));
@@ -250,6 +252,8 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
   d.faced = std::any_of(spec.pieces.begin(), spec.pieces.end(), [](const SolidSpec::Piece& p) {
     return p.shape.type == ShapeType::kFaced;
   });
+  for (const SolidSpec::Piece& piece : spec.pieces)
+    if (!piece.shape.file.empty()) d.shape_files[piece.shape.file.string()] = piece.shape.file_sha256;
   if (!spec.fixed_root.empty()) {
     for (const char* key : {"dimensions", "constants", "derived", "constraints", "combinations"})
       if (const auto node = root.find(key))
@@ -310,7 +314,9 @@ PartModel PartModel::fromConfig(const ConfigNode& root, const std::filesystem::p
 }
 
 PartModel PartModel::fromStl(const std::filesystem::path& path) {
-  return fromFixedMesh(path, "stl", readStl(path));
+  std::string sha256;
+  TriangleMesh mesh = readStl(path, &sha256);
+  return fromFixedMesh(path, "stl", std::move(mesh), sha256);
 }
 
 PartModel PartModel::fromFile(const std::filesystem::path& path) {
@@ -318,13 +324,15 @@ PartModel PartModel::fromFile(const std::filesystem::path& path) {
   std::transform(extension.begin(), extension.end(), extension.begin(),
                  [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   if (extension == ".stl") return fromStl(path);
-  if (extension == ".step" || extension == ".stp")
-    return fromFixedMesh(path, "step", readStep(path, StepTessellation{}));
+  if (extension == ".step" || extension == ".stp") {
+    StepSolid solid = readStepSolid(path, StepTessellation{});
+    return fromFixedMesh(path, "step", std::move(solid.mesh), solid.sha256);
+  }
   return load(path);
 }
 
 PartModel PartModel::fromFixedMesh(const std::filesystem::path& path, const char* type,
-                                   TriangleMesh mesh) {
+                                   TriangleMesh mesh, const std::string& sha256) {
   auto definition = std::make_shared<Definition>();
   definition->name = path.stem().string();
   definition->description = fmt::format("fixed mesh read from {}", path.string());
@@ -338,12 +346,16 @@ PartModel PartModel::fromFixedMesh(const std::filesystem::path& path, const char
   spec.pieces.push_back(std::move(piece));
   spec.program.push_back({Csg::Op::kPiece, 0});
   definition->shape = std::make_unique<const Solid>(spec, std::span<const double>{});
+  definition->shape_files[path.string()] = sha256;
   auto evaluator = std::make_unique<Evaluator>(*definition);
   return PartModel(std::move(definition), std::move(evaluator));
 }
 
 const std::string& PartModel::name() const { return definition_->name; }
 const std::string& PartModel::description() const { return definition_->description; }
+const std::map<std::string, std::string>& PartModel::shapeFileDigests() const {
+  return definition_->shape_files;
+}
 const std::vector<Dimension>& PartModel::dimensions() const { return definition_->dimensions; }
 const std::vector<DeclaredCombination>& PartModel::combinations() const {
   return definition_->combinations;

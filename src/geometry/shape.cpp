@@ -406,10 +406,13 @@ ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& di
     spec.type = ShapeType::kFixed;
     const std::filesystem::path file = shape.get<std::string>("file");
     const std::filesystem::path path = file.is_absolute() ? file : directory / file;
+    spec.file = path;
     if (type == "stl") {
-      spec.fixed = readStl(path);
+      spec.fixed = readStl(path, &spec.file_sha256);
     } else if (!faces || faces->empty()) {
-      spec.fixed = readStep(path, readStepTessellation(shape));
+      StepSolid solid = readStepSolid(path, readStepTessellation(shape));
+      spec.fixed = std::move(solid.mesh);
+      spec.file_sha256 = std::move(solid.sha256);
     } else {
       // The part's dimensions move this solid's faces.
       if (faces_taken)
@@ -418,8 +421,10 @@ ShapeSpec readShapeSpec(const ConfigNode& shape, const std::filesystem::path& di
       faces_taken = true;
       const StepTessellation tessellation = readStepTessellation(shape);
       spec.type = ShapeType::kFaced;
-      spec.faced = resolveFaceMoves(readStepSolid(path, tessellation),
-                                    tessellation.chord_tolerance_mm, *faces, spec.scalars);
+      StepSolid solid = readStepSolid(path, tessellation);
+      spec.file_sha256 = solid.sha256;
+      spec.faced = resolveFaceMoves(std::move(solid), tessellation.chord_tolerance_mm, *faces,
+                                    spec.scalars);
     }
   } else {
     type_node.fail(

@@ -43,6 +43,8 @@ struct ShapeSpec {
   int segments = 0;                 // revolution; 0: enough for a 0.001 mm chord error
   std::vector<Triangle> triangles;  // mesh
   TriangleMesh fixed;               // stl, step: the mesh read from the file
+  std::filesystem::path file;       // stl, step, faced: the file read
+  std::string file_sha256;          // ... and the SHA-256 of its bytes
   std::shared_ptr<const FacedStep> faced;  // faced: the solid and its moves
 };
 

@@ -3,6 +3,7 @@
 // welding and checks (closedMeshFromSoup). See xgauge/geometry/step.h.
 #include "xgauge/geometry/step.h"
 
+#include "xgauge/core/digest.h"
 #include "xgauge/core/file.h"
 
 #include <BRepAdaptor_Surface.hxx>
@@ -226,7 +227,7 @@ Surface surfaceOf(const TopoDS_Face& face, std::string& type_name) {
       surface.origin = point(cone.Location());
       surface.axis = direction(cone.Axis().Direction());
       surface.radius = cone.RefRadius();
-      surface.semi_angle = cone.SemiAngle();
+      surface.setSemiAngle(cone.SemiAngle());
       break;
     }
     case GeomAbs_Sphere: {
@@ -345,7 +346,7 @@ void chooseSheets(const TriangleMesh& mesh, std::span<const uint32_t> triangle_f
   std::vector<double> as_read(faces.size(), 0.0), restated(faces.size(), 0.0);
   const auto flipped = [](Surface s) {
     s.radius = -s.radius;
-    if (s.kind == SurfaceKind::kCone) s.semi_angle = -s.semi_angle;
+    if (s.kind == SurfaceKind::kCone) s.setSemiAngle(-s.semi_angle);
     return s;
   };
   for (size_t t = 0; t < mesh.triangles.size(); ++t) {
@@ -393,8 +394,9 @@ void describeTriangles(const TriangleMesh& mesh, std::span<const uint32_t> trian
 }
 
 TopoDS_Shape readShape(STEPControl_Reader& reader, const std::filesystem::path& path,
-                       const std::string& file) {
+                       const std::string& file, std::string& sha256) {
   const std::string bytes = readFileContents(path, kMaxStepBytes, "a STEP file");
+  sha256 = sha256Hex(bytes);
   std::string_view text(bytes);
   if (text.starts_with("\xEF\xBB\xBF")) text.remove_prefix(3);  // a UTF-8 byte order mark
   const size_t first = text.find_first_not_of(" \t\r\n");
@@ -444,7 +446,7 @@ StepSolid readStepSolid(const std::filesystem::path& path, const StepTessellatio
     silenceOcct();
     try {
       STEPControl_Reader reader;
-      const TopoDS_Shape shape = readShape(reader, path, file);
+      const TopoDS_Shape shape = readShape(reader, path, file, solid.sha256);
       const FaceNames names(reader, shape);
       if (names.count() == 0)
         failIn(file, "the shape has no faces: not a solid (a STEP file of curves or points?)");

@@ -1,5 +1,6 @@
 #include "xgauge/geometry/stl.h"
 
+#include "xgauge/core/digest.h"
 #include "xgauge/core/file.h"
 
 #include <algorithm>
@@ -163,10 +164,11 @@ TriangleSoup parseStl(const std::string& bytes, const std::string& file) {
 
 }  // namespace
 
-TriangleMesh readStl(const std::filesystem::path& path) {
+TriangleMesh readStl(const std::filesystem::path& path, std::string* sha256) {
   const std::string file = path.string();
   // 256 MiB: 5 million binary triangles, far beyond any part a fit can use.
   const std::string bytes = readFileContents(path, uint64_t{256} << 20, "an STL file");
+  if (sha256) *sha256 = sha256Hex(bytes);
   return closedMeshFromSoup(parseStl(bytes, file), file);
 }
 

@@ -43,6 +43,12 @@ std::string_view surfaceKindName(SurfaceKind kind) {
   return "other";
 }
 
+void Surface::setSemiAngle(double radians) {
+  semi_angle = radians;
+  cos_semi_angle = std::cos(radians);
+  tan_semi_angle = std::tan(radians);
+}
+
 double Surface::value(const Vec3& p) const {
   switch (kind) {
     case SurfaceKind::kPlane:
@@ -51,8 +57,7 @@ double Surface::value(const Vec3& p) const {
       return radial(p, origin, axis).norm() - radius;
     case SurfaceKind::kCone: {
       const double h = (p - origin).dot(axis);
-      return (radial(p, origin, axis).norm() - (radius + h * std::tan(semi_angle))) *
-             std::cos(semi_angle);
+      return (radial(p, origin, axis).norm() - (radius + h * tan_semi_angle)) * cos_semi_angle;
     }
     case SurfaceKind::kSphere:
       return (p - origin).norm() - radius;
@@ -75,8 +80,8 @@ Vec3 Surface::gradient(const Vec3& p) const {
     case SurfaceKind::kCylinder:
       return unitOrZero(radial(p, origin, axis));
     case SurfaceKind::kCone:
-      return std::cos(semi_angle) * unitOrZero(radial(p, origin, axis)) -
-             std::sin(semi_angle) * axis;
+      return cos_semi_angle * unitOrZero(radial(p, origin, axis)) -
+             cos_semi_angle * tan_semi_angle * axis;
     case SurfaceKind::kSphere:
       return unitOrZero(p - origin);
     case SurfaceKind::kTorus: {
@@ -106,7 +111,7 @@ Surface Surface::moved(const Vec3& t_mm, double growth_mm) const {
       s.radius += growth_mm;
       break;
     case SurfaceKind::kCone:
-      s.radius += growth_mm / std::cos(semi_angle);
+      s.radius += growth_mm / cos_semi_angle;
       break;
     case SurfaceKind::kTorus:
       s.minor_radius += growth_mm;
@@ -159,7 +164,7 @@ double Surface::diameterAt(const Vec3& station) const {
     case SurfaceKind::kCylinder:
       return 2.0 * radius;
     case SurfaceKind::kCone:
-      return 2.0 * (radius + (station - origin).dot(axis) * std::tan(semi_angle));
+      return 2.0 * (radius + (station - origin).dot(axis) * tan_semi_angle);
     default:
       break;
   }

@@ -230,6 +230,16 @@ nlohmann::json deadPixelsJson(const DetectorPattern& pattern) {
   return dead;
 }
 
+// truth.json's "part": the model, its true dimensions and, where the shots
+// showed another solid, that solid's file.
+nlohmann::json partJson(const Recipe& recipe, const nlohmann::json& dimensions) {
+  nlohmann::json part = {{"model", std::filesystem::weakly_canonical(recipe.part_file).string()},
+                         {"dimensions", dimensions}};
+  if (recipe.physical_file)
+    part["physical"] = std::filesystem::weakly_canonical(*recipe.physical_file).string();
+  return part;
+}
+
 }  // namespace
 
 DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path& folder) {
@@ -245,7 +255,13 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
 
   const PartModel model = PartModel::load(recipe.part_file);
   const std::vector<double> values = model.values(recipe.true_dimensions);
-  const TriangleMesh mesh = model.mesh(values);
+  // What the shots show: the model at its true dimensions, or the physical
+  // solid the recipe names.
+  const TriangleMesh mesh = [&] {
+    if (!recipe.physical_file) return model.mesh(values);
+    const PartModel physical = PartModel::fromFile(*recipe.physical_file);
+    return physical.mesh(physical.nominalValues());
+  }();
   const double max_path_mm = boundingBox(mesh).diagonal() * 1.01 + 1.0;
   const PolychromaticMaterial material(beam, material_layer);
   const TransmissionTable table = material.table(max_path_mm);
@@ -349,9 +365,7 @@ DatasetReport simulateDataset(const Recipe& recipe, const std::filesystem::path&
         {"heel_gradient", acquisition.heel_gradient},
         {"cos3_falloff", acquisition.cos3_falloff},
         {"column_darkening", acquisition.column_darkening}}},
-      {"part",
-       {{"model", std::filesystem::weakly_canonical(recipe.part_file).string()},
-        {"dimensions", dims}}},
+      {"part", partJson(recipe, dims)},
       {"white_region", {white.x, white.y, white.width, white.height}},
       {"dark", "dark.tif"},
       {"flat", "flat.tif"},

@@ -119,6 +119,10 @@ Recipe Recipe::load(const std::filesystem::path& path) {
 
   const ConfigNode part = root.at("part");
   recipe.part_file = folder / part.get<std::string>("model");
+  if (const auto physical = part.find("physical")) {
+    if (root.has("lot")) physical->fail("a lot's parts differ: one physical solid cannot show them");
+    recipe.physical_file = folder / physical->string();
+  }
   const PartModel model = PartModel::load(recipe.part_file);
   if (auto dims = part.find("dimensions")) {
     for (const auto& name : dims->keys()) recipe.true_dimensions[name] = dims->at(name).number();

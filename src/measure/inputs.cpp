@@ -172,6 +172,7 @@ MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
   const std::filesystem::path part_file = MeasurementJob::partFileOf(root, job_file);
   in.part = std::make_shared<const PartModel>(
       PartModel::fromConfig(loadInputConfig(part_file, in.sha256), part_file));
+  for (const auto& [file, digest] : in.part->shapeFileDigests()) in.sha256[file] = digest;
   in.job = MeasurementJob::fromConfig(root, job_file, *in.part, needs_material);
   {
     const ConfigNode machine = loadInputConfig(in.job.machine_file, in.sha256);

@@ -6,6 +6,7 @@
 #include "xgauge/core/atomic_file.h"
 #include "xgauge/core/config.h"
 #include "xgauge/core/digest.h"
+#include "xgauge/core/file.h"
 #include "xgauge/core/output.h"
 #include "xgauge/core/progress.h"
 #include "xgauge/measure/job.h"
@@ -69,7 +70,8 @@ std::string runFingerprint(const nlohmann::json& job, const DatasetTruth& truth,
   text += "machine " + truth.machine.dump() + "\n";
   text += "material " + materialRecord(inputs).dump() + "\n";
   text += fmt::format("images {}\n", images);
-  text += "part " + digests.of(truth.part_file) + "\n";
+  text += "part " + digests.of(inputs.part_file) + "\n";
+  for (const auto& [file, digest] : inputs.part->shapeFileDigests()) text += "shape " + digest + "\n";
   for (const auto& radiograph : job.at("radiographs"))
     for (const char* key : {"image", "dark", "flat", "previous"})
       if (radiograph.contains(key))
@@ -204,7 +206,8 @@ std::vector<Combination> combinations(const DatasetTruth& truth, const std::stri
 }  // namespace
 
 nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& truth,
-                        const std::vector<std::string>& shots, const std::string& id,
+                        const fs::path& part_file, const std::vector<std::string>& shots,
+                        const std::string& id,
                         const fs::path& machine_file, const fs::path& material_file, bool turned) {
   nlohmann::json job = settings;
   job.erase("material");
@@ -223,7 +226,7 @@ nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& trut
     return nullptr;
   };
   job["description"] = "study run " + id;
-  job["part"] = fs::absolute(truth.part_file).string();
+  job["part"] = fs::absolute(part_file).string();
   job["machine"] = fs::absolute(machine_file).string();
   job["material"] = fs::absolute(material_file).string();
   const auto& w = truth.white_region;
@@ -271,7 +274,18 @@ nlohmann::json materialRecord(const StudyInputs& inputs) {
 StudyInputs prepareStudyInputs(const DatasetTruth& truth, const nlohmann::json& settings,
                                const fs::path& settings_file) {
   StudyInputs inputs;
-  inputs.part = std::make_shared<const PartModel>(PartModel::load(truth.part_file));
+  inputs.part_file = truth.part_file;
+  if (const auto it = settings.find("part"); it != settings.end()) {
+    if (!it->is_string()) fail("{}: /part: expected a file name", settings_file.string());
+    inputs.part_file = settings_file.parent_path() / it->get<std::string>();
+  }
+  inputs.part = std::make_shared<const PartModel>(PartModel::load(inputs.part_file));
+  // The truth is compared by name: every dimension of the model must be one
+  // of the dataset's.
+  for (const Dimension& d : inputs.part->dimensions())
+    if (!truth.dimensions.count(d.name))
+      fail("{}: the part model {} has a dimension '{}' that the dataset's truth does not give",
+           settings_file.string(), inputs.part_file.string(), d.name);
   const ConfigNode machine =
       ConfigNode::fromJson(truth.machine, (truth.folder / "truth.json").string() + " (machine)");
   inputs.machine = Machine::fromConfig(machine);
@@ -462,7 +476,10 @@ StudyRecords writeStudyRecords(const StudyOptions& options, const DatasetTruth& 
   const std::string material_text = materialRecord(inputs).dump(2) + "\n";
   writeFileAtomically(records.machine_file, machine_text);
   writeFileAtomically(records.material_file, material_text);
-  inputs.file_sha256[fs::absolute(truth.part_file).string()] = sha256Hex(readText(truth.part_file));
+  inputs.file_sha256[fs::absolute(inputs.part_file).string()] =
+      sha256Hex(readFileContents(inputs.part_file, uint64_t{64} << 20, "a part model"));
+  for (const auto& [file, digest] : inputs.part->shapeFileDigests())
+    inputs.file_sha256[fs::absolute(file).string()] = digest;
   inputs.file_sha256[fs::absolute(records.machine_file).string()] = sha256Hex(machine_text);
   inputs.file_sha256[fs::absolute(records.material_file).string()] = sha256Hex(material_text);
   return records;
@@ -495,7 +512,7 @@ std::vector<nlohmann::json> studyJobs(const StudyOptions& options, const nlohman
                                       std::vector<std::string>& free_dimensions) {
   std::vector<nlohmann::json> jobs;
   for (const auto& c : runs) {
-    jobs.push_back(studyJob(settings, truth, c.shots, c.id, records.machine_file,
+    jobs.push_back(studyJob(settings, truth, inputs.part_file, c.shots, c.id, records.machine_file,
                             records.material_file, c.turned));
     // A verification named relative to the settings file, as every run's
     // job.json records it: absolutely.

@@ -136,6 +136,9 @@ class PartModel {
   ~PartModel();
 
   const std::string& name() const;  // the file name without extension
+  // The STL and STEP files its shape read and the SHA-256 of the bytes
+  // read (part of the model: a result records them beside the part file's).
+  const std::map<std::string, std::string>& shapeFileDigests() const;
   const std::string& description() const;
   const std::vector<Dimension>& dimensions() const;
   // Optional key "combinations" (docs/formats.md).
@@ -218,9 +221,10 @@ class PartModel {
   // over), with the range that can (buildableRange).
   void requireBuildableWithinBounds(const std::filesystem::path& path) const;
   PartModel(std::shared_ptr<const Definition> definition, std::unique_ptr<Evaluator> evaluator);
-  // A fixed mesh read from `path` (an "stl" or "step" file, `type`).
+  // A fixed mesh read from `path` (an "stl" or "step" file, `type`; its
+  // bytes' SHA-256).
   static PartModel fromFixedMesh(const std::filesystem::path& path, const char* type,
-                                 TriangleMesh mesh);
+                                 TriangleMesh mesh, const std::string& sha256);
 
   std::shared_ptr<const Definition> definition_;  // immutable, shared by copies
   std::unique_ptr<Evaluator> evaluator_;          // compiled expressions, per copy

@@ -13,9 +13,11 @@
 #include "xgauge/geometry/mesh.h"
 
 #include <filesystem>
+#include <string>
 
 namespace xgauge {
 
-TriangleMesh readStl(const std::filesystem::path& path);
+// `sha256`, when given, receives the SHA-256 of the bytes read.
+TriangleMesh readStl(const std::filesystem::path& path, std::string* sha256 = nullptr);
 
 }  // namespace xgauge

@@ -33,8 +33,11 @@ struct Surface {
   double radius = 0.0;
   double minor_radius = 0.0;  // torus: the tube's
   // cone: radians in (-pi/2, pi/2), not 0: the radius grows by tan(semi_angle)
-  // per mm along `axis`.
+  // per mm along `axis`. Set with setSemiAngle(), which also keeps its
+  // cosine and tangent (value() and gradient() run per vertex and step).
   double semi_angle = 0.0;
+  double cos_semi_angle = 1.0, tan_semi_angle = 0.0;
+  void setSemiAngle(double radians);
 
   // An implicit function, 0 on the surface, whose gradient has unit length
   // on it: the signed distance for planes (along `axis`), cylinders, spheres

@@ -20,7 +20,8 @@
 //     column_darkening  each column reads lower by this times the mean
 //                     attenuation along it (lab/detector.h darkenColumns),
 //                     0..0.1, default 0
-//   part              {"model": path, "dimensions": {name: value, ...}} (unnamed = nominal)
+//   part              {"model": path, "dimensions": {name: value, ...}} (unnamed = nominal),
+//                     optional "physical": path (the solid shown, see below)
 //   shots             the acquisition:
 //     base_pose       pose of the first translated shot (xray/machine.h pose keys)
 //     pivot_mm        part point the rotations turn about (default: bounding-box centre)
@@ -72,6 +73,12 @@ struct Recipe {
   std::filesystem::path machine_file;
   std::filesystem::path part_file;
   std::map<std::string, double> true_dimensions;  // by name; others take their nominal
+  // "physical": the solid the shots show, when it is not the model at its
+  // true dimensions (a CAD solid made at those dimensions by other means, a
+  // part with features the model lacks): any part file (PartModel::fromFile:
+  // a STEP or STL solid, or a part model at its nominal values). The
+  // truth's dimensions stay the model's.
+  std::optional<std::filesystem::path> physical_file;
   std::vector<ShotPlan> shots;
   // "rotations": {"turntable": true}: the rotary stage is the machine's
   // calibrated turntable, whose axis (through the pivot, along the

@@ -95,6 +95,10 @@ StudySummary runStudy(const StudyOptions& options);
 // model and machine, and the material (fitted to the dataset's transmission
 // table unless the settings name a file).
 struct StudyInputs {
+  // The model every run fits: the settings' "part" where they name one (a
+  // model of the same part with the same dimension names, such as one on
+  // its STEP file), else the dataset's.
+  std::filesystem::path part_file;
   std::shared_ptr<const PartModel> part;
   Machine machine;
   ExponentialSum material{{{1.0, 0.0}}, ""};
@@ -137,6 +141,7 @@ class PreparedShots {
 // their nominal angles; it names the machine and material files the study
 // wrote as records.
 nlohmann::json studyJob(const nlohmann::json& settings, const DatasetTruth& truth,
+                        const std::filesystem::path& part_file,
                         const std::vector<std::string>& shots, const std::string& id,
                         const std::filesystem::path& machine_file,
                         const std::filesystem::path& material_file, bool turned = false);

@@ -7,7 +7,7 @@ import sys
 import time
 
 from . import grid
-from .physical import KINDS
+from .physical import KINDS, ScrewBuilderError, screw_builder
 
 
 def main(argv=None):
@@ -30,7 +30,8 @@ def main(argv=None):
                                      "of machines, every measured part with its master sets, stated inputs drawn per run")
     s.add_argument("-o", "--output", required=True)
     s.add_argument("--machines", default=",".join(grid.SUITE), help=f"comma-separated ids (default: {','.join(grid.SUITE)})")
-    s.add_argument("--parts", default="prism,wedge,bracket,shaft")
+    s.add_argument("--parts", default="prism,wedge,bracket,shaft",
+                   help="comma-separated measured parts (default prism,wedge,bracket,shaft; also screw)")
     s.add_argument("--masters", type=int, default=3, help="master shot sets per part (default 3)")
     s.add_argument("--master-specimens", type=int, default=1, help="master specimens per part, each drawn on its "
                                                                   "own with --masters shot sets (default 1)")
@@ -63,6 +64,12 @@ def main(argv=None):
     for p in parts:
         if p not in KINDS:
             ap.error(f"unknown part {p!r} (known: {', '.join(KINDS)})")
+    if "screw" in parts:
+        try:
+            screw_builder()
+        except ScrewBuilderError as e:
+            print(f"lab2: error: {e}", file=sys.stderr)
+            return 2
     tasks = []
     for mid, k in ((m, k) for m in ids for k in range(runs)):
         if os.path.isfile(mid):
@@ -100,8 +107,10 @@ def _one(task):
 
 
 def _parts_args(s):
-    s.add_argument("--parts", default="", help="comma-separated measured parts (prism, wedge, bracket, shaft) with "
-                                               "their master sets, under measured/")
+    s.add_argument("--parts", default="", help="comma-separated measured parts (prism, wedge, bracket, shaft, screw) "
+                                               "with their master sets, under measured/ (the screw's true solids "
+                                               "need OpenCASCADE's builder: XGAUGE_SCREW_SOLID or "
+                                               "build/bench/screw_solid)")
     s.add_argument("--masters", type=int, default=3, help="master shot sets per part (default 3)")
     s.add_argument("--master-specimens", type=int, default=1, help="master specimens per part, each drawn on its "
                                                                   "own with --masters shot sets (default 1)")

@@ -373,65 +373,156 @@ class Revolution(Solid):
         return tt, ss, sig
 
 
+def _ray_frames(D):
+    """Per ray two unit vectors u, w perpendicular to it: u = D x e (e the
+    axis along which D is smallest), w = D x u; the same numbers as
+    numpy.cross gives, written out."""
+    N = len(D)
+    m = np.argmin(np.abs(D), axis=1)
+    d0, d1, d2 = D[:, 0], D[:, 1], D[:, 2]
+    z = np.zeros(N)
+    # D x e_x = (0, d2, -d1), D x e_y = (-d2, 0, d0), D x e_z = (d1, -d0, 0)
+    u = np.stack([np.where(m == 0, z, np.where(m == 1, -d2, d1)),
+                  np.where(m == 0, d2, np.where(m == 1, z, -d0)),
+                  np.where(m == 0, -d1, np.where(m == 1, d0, z))], axis=1)
+    u /= np.linalg.norm(u, axis=1)[:, None]
+    w = np.stack([d1 * u[:, 2] - d2 * u[:, 1], d2 * u[:, 0] - d0 * u[:, 2], d0 * u[:, 1] - d1 * u[:, 0]], axis=1)
+    return u, w
+
+
+LARGE_MESH = 2000  # triangles: above this a mesh is culled through a grid and its events packed
+SUB_RAYS = 512  # rays per culled batch of a large mesh
+SPLIT_WORK = 1 << 15  # (triangles x rays) above which such a batch is halved
+
+
 class Mesh(Solid):
     """A closed, outward-oriented triangle mesh (counter-clockwise seen from
-    outside), intersected watertight (see the module's description)."""
+    outside), intersected watertight (see the module's description).
 
-    def __init__(self, V, T):
+    smooth_deg: None (default) gives every plane of coplanar triangles its
+    own signature weight, so the renderer integrates every pixel a facet
+    edge crosses.  A number groups the triangles into smooth faces instead:
+    neighbours whose normals differ by less than smooth_deg share a weight,
+    so the facets of one tessellated curved face (an STL of a CAD solid)
+    count as one face in the ray signatures and the renderer's midpoint rule
+    applies across their edges, while the face's real edges are integrated.
+    The paths themselves are those of the facets either way.
+
+    Meshes of more than LARGE_MESH triangles are culled through a grid of
+    the triangles' central projections from the focal spot (built once per
+    focal spot) and report only the crossings each ray has (events packed
+    to the largest count in a chunk); the watertight test is the same."""
+
+    def __init__(self, V, T, smooth_deg=None):
         self.V = np.asarray(V, float)
         self.T = np.asarray(T, np.int64)
-        key = {}
-        edges = []
-        tri_edge = np.zeros((len(self.T), 3), np.int64)
-        tri_sign = np.zeros((len(self.T), 3), np.int64)
-        uses = {}
-        for f, (a, b, c) in enumerate(self.T):
-            for m, (i, j) in enumerate(((a, b), (b, c), (c, a))):
-                u = (min(i, j), max(i, j))
-                if u not in key:
-                    key[u] = len(edges)
-                    edges.append(u)
-                tri_edge[f, m] = key[u]
-                tri_sign[f, m] = 1 if i < j else -1
-                uses[u] = uses.get(u, 0) + (1 if i < j else -1)
-        self.open_edges = sum(1 for v in uses.values() if v != 0)
-        self.E = np.array(edges, np.int64)
-        self.tri_edge = tri_edge
-        self.tri_sign = tri_sign.astype(np.int8)
+        self.large = len(self.T) > LARGE_MESH
+        if self.large:
+            self._edges_vectorized()
+        else:
+            key = {}
+            edges = []
+            tri_edge = np.zeros((len(self.T), 3), np.int64)
+            tri_sign = np.zeros((len(self.T), 3), np.int64)
+            uses = {}
+            for f, (a, b, c) in enumerate(self.T):
+                for m, (i, j) in enumerate(((a, b), (b, c), (c, a))):
+                    u = (min(i, j), max(i, j))
+                    if u not in key:
+                        key[u] = len(edges)
+                        edges.append(u)
+                    tri_edge[f, m] = key[u]
+                    tri_sign[f, m] = 1 if i < j else -1
+                    uses[u] = uses.get(u, 0) + (1 if i < j else -1)
+            self.open_edges = sum(1 for v in uses.values() if v != 0)
+            self.E = np.array(edges, np.int64)
+            self.tri_edge = tri_edge
+            self.tri_sign = tri_sign.astype(np.int8)
         A, B, C = (self.V[self.T[:, m]] for m in range(3))
         self.N = np.cross(B - A, C - A)
         self.A = A
-        # coplanar triangles share a signature weight
         area2 = np.linalg.norm(self.N, axis=1)
         nn = self.N / np.where(area2 > 0, area2, 1.0)[:, None]
-        off = np.einsum("ij,ij->i", nn, A)
-        groups = {}
-        gid = np.zeros(len(self.T), np.int64)
-        for f in range(len(self.T)):
-            g = tuple(np.round(np.append(nn[f], off[f] * 1e-3), 9))
-            gid[f] = groups.setdefault(g, len(groups))
-        self.w = _weights(len(groups), 5)[gid]
-        self.n_events = len(self.T)
+        if smooth_deg is not None:
+            gid = self._smooth_groups(nn, float(smooth_deg))
+            self.w = _weights(int(gid.max()) + 1 if len(gid) else 0, 5)[gid]
+        elif self.large:
+            key = np.round(np.column_stack([nn, np.einsum("ij,ij->i", nn, A) * 1e-3]), 9)
+            _, first, inv = np.unique(key, axis=0, return_index=True, return_inverse=True)
+            rank = np.empty(len(first), np.int64)
+            rank[np.argsort(first)] = np.arange(len(first))
+            gid = rank[inv.ravel()]
+            self.w = _weights(len(first), 5)[gid]
+        else:
+            # coplanar triangles share a signature weight
+            off = np.einsum("ij,ij->i", nn, A)
+            groups = {}
+            gid = np.zeros(len(self.T), np.int64)
+            for f in range(len(self.T)):
+                g = tuple(np.round(np.append(nn[f], off[f] * 1e-3), 9))
+                gid[f] = groups.setdefault(g, len(groups))
+            self.w = _weights(len(groups), 5)[gid]
+        self.n_events = 32 if self.large else len(self.T)
+        self._proj = None
+
+    def _edges_vectorized(self):
+        T = self.T
+        nv = max(len(self.V), 1)
+        a = T
+        b = T[:, [1, 2, 0]]
+        lo, hi = np.minimum(a, b), np.maximum(a, b)
+        uk, first, inv = np.unique((lo * nv + hi).ravel(), return_index=True, return_inverse=True)
+        # edges numbered by first appearance, as the loop does for small meshes
+        rank = np.empty(len(uk), np.int64)
+        rank[np.argsort(first, kind="stable")] = np.arange(len(uk))
+        inv = rank[inv.ravel()]
+        E = np.empty((len(uk), 2), np.int64)
+        E[rank] = np.column_stack([uk // nv, uk % nv])
+        sign = np.where(a < b, 1, -1)
+        uses = np.bincount(inv, weights=sign.ravel(), minlength=len(uk))
+        self.open_edges = int(np.count_nonzero(uses))
+        self.E = E
+        self.tri_edge = inv.reshape(-1, 3)
+        self.tri_sign = sign.astype(np.int8)
+
+    def _smooth_groups(self, nn, deg):
+        """Triangles joined across edges where their normals differ by less
+        than deg, numbered by first appearance."""
+        from scipy.sparse import coo_matrix
+        from scipy.sparse.csgraph import connected_components
+        nt = len(self.T)
+        te = self.tri_edge.ravel()
+        tri = np.repeat(np.arange(nt), 3)
+        order = np.argsort(te, kind="stable")
+        te, tri = te[order], tri[order]
+        same = te[1:] == te[:-1]
+        t1, t2 = tri[:-1][same], tri[1:][same]
+        smooth = np.einsum("ij,ij->i", nn[t1], nn[t2]) > np.cos(np.radians(deg))
+        g = coo_matrix((np.ones(int(smooth.sum())), (t1[smooth], t2[smooth])), shape=(nt, nt))
+        _, lab = connected_components(g, directed=False)
+        _, first, inv = np.unique(lab, return_index=True, return_inverse=True)
+        rank = np.empty(len(first), np.int64)
+        rank[np.argsort(first)] = np.arange(len(first))
+        return rank[inv.ravel()]
 
     def bbox(self):
         return self.V.min(axis=0), self.V.max(axis=0)
 
-    def events(self, o, D):
-        N = len(D)
-        m = np.argmin(np.abs(D), axis=1)
-        e = np.zeros_like(D)
-        e[np.arange(N), m] = 1.0
-        u = np.cross(D, e)
-        u /= np.linalg.norm(u, axis=1)[:, None]
-        w = np.cross(D, u)
-        Vr = self.V - o
-        keep = self._cull(Vr, D)
+    def _crossings(self, o, D, keep, Vr, vsub):
+        """The watertight test of rays D against the triangles `keep`:
+        (t, s) of shape (n_keep, N) and the rays' signatures.  Vr: vertices
+        minus o (all, or those listed by vsub)."""
+        u, w = _ray_frames(D)
         te, ts = self.tri_edge[keep], self.tri_sign[keep]
         used, te = np.unique(te, return_inverse=True)
         te = te.reshape(-1, 3)
+        i, j = self.E[used, 0], self.E[used, 1]
+        if vsub:
+            vs, ij = np.unique(np.concatenate([i, j]), return_inverse=True)
+            i, j = ij[:len(i)], ij[len(i):]
+            Vr = Vr[vs]
         X = Vr @ u.T  # (nv, N): every vertex projected once per ray
         Y = Vr @ w.T
-        i, j = self.E[used, 0], self.E[used, 1]
         Xi, Yi, Xj, Yj = X[i], Y[i], X[j], Y[j]
         ef = Xi * Yj - Yi * Xj  # (ne, N), shared by the edge's two triangles
         sgn = np.sign(ef).astype(np.int8)
@@ -450,12 +541,159 @@ class Mesh(Solid):
             t = np.where(hit, num[:, None] / den, INF)
         s = np.where(hit, -(tot // 3), 0).astype(np.int8)
         sig = self.w[keep] @ hit
+        return t, s, sig, hit
+
+    def events(self, o, D):
+        if self.large:
+            return self._events_large(o, D)
+        N = len(D)
+        Vr = self.V - o
+        keep = self._cull(Vr, D)
+        t, s, sig, _ = self._crossings(o, D, keep, Vr, False)
         tt = np.full((N, self.n_events), INF)
         ss = np.zeros((N, self.n_events), np.int8)
         k = len(t)
         tt[:, :k] = t.T
         ss[:, :k] = s.T
         return tt, ss, sig
+
+    def _events_large(self, o, D):
+        N = len(D)
+        P = self._projection(o)
+        Vr = P["Vr"] if P is not None else self.V - o
+        order = self._compact_order(P, D) if P is not None else None
+        pieces = []
+        kmax = 0
+        todo = [(a, min(N, a + SUB_RAYS), None) for a in range(0, N, SUB_RAYS)][::-1]
+        while todo:
+            a, b, within = todo.pop()
+            Db = D[a:b] if order is None else D[order[a:b]]
+            keep = self._candidates(P, Db, within) if P is not None else None
+            if keep is None:
+                keep = np.nonzero(self._cull(Vr, Db))[0]
+            elif order is not None and b - a > 16 and len(keep) * (b - a) > SPLIT_WORK:
+                # many triangles over these rays (a dense face seen at a grazing angle): halve the batch
+                h = (a + b) // 2
+                todo += [(h, b, keep), (a, h, keep)]
+                continue
+            if len(keep) == 0:
+                pieces.append((a, b, None, None, None, np.zeros(b - a)))
+                continue
+            t, s, sig, hit = self._crossings(o, Db, keep, Vr, True)
+            r, k = np.nonzero(hit.T)  # ray-major: each ray's crossings in triangle order
+            cnt = np.bincount(r, minlength=b - a)
+            pos = np.arange(len(r)) - (np.cumsum(cnt) - cnt)[r]
+            kmax = max(kmax, int(cnt.max()) if len(cnt) else 0)
+            pieces.append((a, b, r, pos, (t[k, r], s[k, r]), sig))
+        tt = np.full((N, kmax), INF)
+        ss = np.zeros((N, kmax), np.int8)
+        sig = np.zeros(N)
+        idx = np.arange(N) if order is None else order
+        for a, b, r, pos, ts_, sg in pieces:
+            sig[idx[a:b]] = sg
+            if r is not None and len(r):
+                tt[idx[a + r], pos] = ts_[0]
+                ss[idx[a + r], pos] = ts_[1]
+        return tt, ss, sig
+
+    @staticmethod
+    def _compact_order(P, D):
+        """The rays sorted along a Z-order curve of their projections (cells
+        of the culling grid), so that each batch of SUB_RAYS rays is compact
+        (each ray's result does not depend on its batch)."""
+        Dz = D @ P["dc"]
+        if np.any(Dz <= 0.5):
+            return None
+        n = P["n"]
+        ia = np.clip(((D @ P["e1"]) / Dz - P["a0"]) // P["ha"], 0, n - 1).astype(np.int64)
+        ib = np.clip(((D @ P["e2"]) / Dz - P["b0"]) // P["hb"], 0, n - 1).astype(np.int64)
+        key = np.zeros(len(D), np.int64)
+        for bit in range(10):
+            key |= ((ia >> bit) & 1) << (2 * bit) | ((ib >> bit) & 1) << (2 * bit + 1)
+        return np.argsort(key, kind="stable")
+
+    def _projection(self, o):
+        """The triangles' central projections from o onto the plane
+        perpendicular to the direction of the mesh's centre, binned into a
+        grid (cached for the last o); None where o is not clearly outside."""
+        key = np.asarray(o, float).tobytes()
+        if self._proj is not None and self._proj[0] == key:
+            return self._proj[1]
+        Vr = self.V - o
+        lo, hi = self.bbox()
+        dc = 0.5 * (lo + hi) - o
+        if not np.linalg.norm(dc) > 0:
+            self._proj = (key, None)
+            return None
+        dc = dc / np.linalg.norm(dc)
+        e1 = np.cross(dc, np.eye(3)[np.argmin(np.abs(dc))])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(dc, e1)
+        z = Vr @ dc
+        if np.any(z <= 1e-6 * np.abs(z).max()):
+            self._proj = (key, None)
+            return None
+        a, b = (Vr @ e1) / z, (Vr @ e2) / z
+        at, bt = a[self.T], b[self.T]
+        amin, amax, bmin, bmax = at.min(1), at.max(1), bt.min(1), bt.max(1)
+        eps = 1e-9 * (np.ptp(a) + np.ptp(b) + 1e-12)
+        n = int(min(512, max(16, 2 * np.sqrt(len(self.T)))))
+        a0, b0 = a.min() - 2 * eps, b.min() - 2 * eps
+        ha = (a.max() + 2 * eps - a0) / n
+        hb = (b.max() + 2 * eps - b0) / n
+        ia0 = np.clip(((amin - eps - a0) // ha).astype(np.int64), 0, n - 1)
+        ia1 = np.clip(((amax + eps - a0) // ha).astype(np.int64), 0, n - 1)
+        ib0 = np.clip(((bmin - eps - b0) // hb).astype(np.int64), 0, n - 1)
+        ib1 = np.clip(((bmax + eps - b0) // hb).astype(np.int64), 0, n - 1)
+        na, nb = ia1 - ia0 + 1, ib1 - ib0 + 1
+        cnt = na * nb
+        tri = np.repeat(np.arange(len(self.T)), cnt)
+        k = np.arange(int(cnt.sum())) - np.repeat(np.cumsum(cnt) - cnt, cnt)
+        cell = (ia0[tri] + k // nb[tri]) * n + ib0[tri] + k % nb[tri]
+        order = np.argsort(cell, kind="stable")
+        starts = np.searchsorted(cell[order], np.arange(n * n + 1))
+        # each projected triangle's edge lines: f(q) = na qa + nb qb - c0, the triangle on the side sk
+        na = -(np.roll(bt, -1, axis=1) - bt)
+        nb = np.roll(at, -1, axis=1) - at
+        c0 = na * at + nb * bt
+        sk = np.sign(na * np.roll(at, -2, axis=1) + nb * np.roll(bt, -2, axis=1) - c0)
+        tol = eps * np.hypot(na, nb)
+        P = {"Vr": Vr, "dc": dc, "e1": e1, "e2": e2, "eps": eps, "n": n, "a0": a0, "b0": b0, "ha": ha, "hb": hb,
+             "tri": tri[order], "starts": starts, "box": (amin, amax, bmin, bmax),
+             "lines": (na * sk, nb * sk, c0 * sk, tol)}
+        self._proj = (key, P)
+        return P
+
+    def _candidates(self, P, D, within=None):
+        """The triangles (of `within`, else of the grid's cells) whose
+        projection can meet the rays' (conservative: their bounding boxes
+        overlap and no edge of the triangle separates them), or None where
+        the rays are not all well in front."""
+        Dz = D @ P["dc"]
+        if np.any(Dz <= 0.5):
+            return None
+        ra, rb = (D @ P["e1"]) / Dz, (D @ P["e2"]) / Dz
+        eps, n = P["eps"], P["n"]
+        lo_a, hi_a, lo_b, hi_b = ra.min() - eps, ra.max() + eps, rb.min() - eps, rb.max() + eps
+        cl = lambda x: min(max(int(x), 0), n - 1)  # noqa: E731
+        i0, i1 = cl((lo_a - P["a0"]) // P["ha"]), cl((hi_a - P["a0"]) // P["ha"])
+        j0, j1 = cl((lo_b - P["b0"]) // P["hb"]), cl((hi_b - P["b0"]) // P["hb"])
+        if within is None:
+            st, tri = P["starts"], P["tri"]
+            c = np.unique(np.concatenate([tri[st[i * n + j0]:st[i * n + j1 + 1]] for i in range(i0, i1 + 1)]))
+        else:
+            c = within
+        amin, amax, bmin, bmax = (x[c] for x in P["box"])
+        ok = (amax >= lo_a) & (amin <= hi_a) & (bmax >= lo_b) & (bmin <= hi_b)
+        c = c[ok]
+        # separating axes: a triangle edge's line with the rays' whole rectangle beyond it (by more than
+        # eps) on the side away from the triangle (long facets seen at a slant have wide bounding boxes)
+        na, nb, c0, tol = (x[c] for x in P["lines"])
+        sep = None
+        for qa, qb in ((lo_a, lo_b), (hi_a, lo_b), (lo_a, hi_b), (hi_a, hi_b)):
+            beyond = na * qa + nb * qb - c0 < -tol
+            sep = beyond if sep is None else sep & beyond
+        return c[~sep.any(axis=1)]
 
     def _cull(self, Vr, D):
         """The triangles whose central projection (from the focal spot) can

@@ -1,4 +1,4 @@
-"""Measured parts (prism, wedge block, bracket, stepped shaft) as a lab
+"""Measured parts (prism, wedge block, bracket, stepped shaft, screw) as a lab
 would shoot them: per part a production specimen with a translated pair
 (t00, t01 = t00 + 10 mm along a nearly horizontal axis) and a rotated shot
 r00 (the part turned in place, where t00 was, by 0 to 90 deg about a stage
@@ -56,6 +56,14 @@ def base_rotation(kind, rng):
         return [90.0 + s() * rng.uniform(15, 25), s() * rng.uniform(15, 25), rng.uniform(-10, 10)]
     if kind == "shaft":  # axis along world y, turned about it so the cross hole is oblique
         return [rng.uniform(-3, 3), s() * rng.uniform(20, 40), rng.uniform(-10, 10)]
+    if kind == "screw":
+        # Laid on its side: rx = -90 takes the screw's axis (part -z, head to tip) to world -y (head up in the
+        # image, the axis across the beam), the slot's walls (normal part y) face the beam; turning it about
+        # its axis (world y) by 35 to 55 deg either way puts the beam at 35 to 55 deg from the slot's walls and
+        # its run (part x): the slot seen obliquely (walls, floor and their ends make edges), part x (the
+        # shank_offset) with a component sin 35..55 deg across the beam; the slot's floor and the tip's face
+        # (normal to the axis) stay along the beam within the tilt.
+        return [-90.0 + rng.uniform(-2, 2), s() * rng.uniform(35, 55), rng.uniform(-10, 10)]
     raise ValueError(kind)
 
 
@@ -188,8 +196,8 @@ class PartRun:
     def shoot_set(self, folder, label, dims, imp, z, base, rng, depth):
         from .session import pose_json, write_json
         s, m, g = self.s, self.m, self.m.geom
-        doc, root = physical.physical_part(self.kind, dims, imp)
         os.makedirs(folder, exist_ok=True)
+        doc, root = physical.physical_part(self.kind, dims, imp, folder=folder)
         if doc is not None:
             write_json(os.path.join(folder, "physical_part.json"), doc)
         pl = self.placement(dims, z, base, rng)
@@ -223,6 +231,9 @@ class PartRun:
                 f"{[round(float(v), 5) for v in sax]} through t00's bounding-box centre")
         if imp:
             desc += f"; imperfections the model lacks (physical_part.json): {imp}"
+        if self.kind == "screw":
+            desc += (f"; the true solid {physical.SCREW_STL} was made by OpenCASCADE's own operations at the true "
+                     "dimensions (builder command line in physical_part.json), no imperfection")
         wr = s.write_dataset(folder, self.kind, self.pm.path, dims, shots, shadow, desc, [])
         e0 = [float(v) for v in euler_from_matrix(R0)]
         return {"folder": os.path.relpath(folder, s.out), "depth": depth, "dims": dims, "white_region": wr,
@@ -275,7 +286,8 @@ def start_bounds(pm, dims):
     """Starts rounded to 0.5 mm (to 0.1 mm where 0.5 breaks a constraint),
     bounds start +- 1 mm within the model's."""
     for q in (2.0, 10.0):
-        start = {k: float(np.clip(round(v * q) / q, pm.bounds[k][0], pm.bounds[k][1])) for k, v in dims.items()}
+        # + 0.0: a value rounding to zero from below (the screw's shank_offset) starts at 0.0, not -0.0
+        start = {k: float(np.clip(round(v * q) / q, pm.bounds[k][0], pm.bounds[k][1])) + 0.0 for k, v in dims.items()}
         if not pm.check(start):
             break
     else:

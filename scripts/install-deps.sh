@@ -20,6 +20,8 @@ packages=(
   libocct-data-exchange-dev libocct-ocaf-dev libocct-visualization-dev
                        # OpenCASCADE: "step" shapes (read, check, tessellate STEP
                        # solids); its CMake package needs the last two's targets
+  occt-misc            # OpenCASCADE's sample CAD files: screw.step, the part of
+                       # examples/screw/ and of the STEP tests
   libssl-dev           # SHA-256 of input files (libcrypto)
   libcli11-dev         # command line parsing
   libfmt-dev libspdlog-dev

@@ -49,6 +49,12 @@ RULES = [
     ("examples", "calibrate_*.json", "calibrate_part"),
     ("examples", "study_*.json", "study"),
     ("examples", "bracket_extruded.json", "part_model"),
+    ("examples/step", "*_lab.json", "recipe"),
+    ("examples/step", "measure_*.json", "job"),
+    ("examples/step", "verify_*.json", "verify"),
+    ("examples/step", "*.json", "part_model"),
+    ("examples/screw", "study_*.json", "study"),
+    ("examples/screw", "*.json", "part_model"),
     ("examples", "stl_with_hole.json", "part_model"),
     ("parts", "*.json", "part_model"),
     ("datasets", "*.json", "recipe"),
@@ -58,7 +64,7 @@ RULES = [
     ("tests/data/htc2022", "material.json", "material"),
     ("tests/data/htc2022", "curve_recipe.json", "recipe"),
 ]
-FOLDERS = ["examples", "parts", "datasets", "tests/data/htc2022"]
+FOLDERS = ["examples", "examples/step", "examples/screw", "parts", "datasets", "tests/data/htc2022"]
 SCHEMA_DIR = pathlib.Path("docs") / "schemas"
 
 
@@ -207,8 +213,22 @@ def broken_documents(root):
     cases.append(("wedge calibration: dark without flat", "calibrate_wedge", d, "/radiograph"))
 
     d = read("examples/study_prism_a.json")
-    d["part"] = "../parts/prism_jaw.json"
-    cases.append(("study: part, which the dataset gives", "study", d, "/part"))
+    d["radiographs"] = []
+    cases.append(("study: radiographs, which the dataset gives", "study", d, "/radiographs"))
+
+    d = read("examples/step/bracket.json")
+    del d["dimensions"][0]["offset"]["faces"]
+    cases.append(("part model: an offset that names no faces", "part_model", d, "/dimensions/0/offset"))
+
+    d = read("examples/step/bracket.json")
+    d["dimensions"][6]["position"]["direction"] = [1, 0]
+    # (one object or a list of them: the validator reports the object)
+    cases.append(("part model: a position's direction of 2 numbers", "part_model", d,
+                  "/dimensions/6/position"))
+
+    d = read("examples/step/verify_bracket.json")
+    d["measurements"] = d["measurements"][:2]
+    cases.append(("verification: two measurements of the master", "verify", d, "/measurements"))
 
     d = read("examples/calibrate_prism_b.json")
     d["material"] = "aluminium_60kev.json"

@@ -96,7 +96,8 @@ inline TopoDS_Shape prismJawSolid(const std::map<std::string, double>& v) {
 // about (rho, z) = (-8.25, -46.31367), and the 45-degree countersink down to
 // its apex) and a shank (radius D / 2 from inside the head down to the
 // tip's 45-degree chamfer and face), turned about the axis, the shank's
-// moved by shank_offset along x, united; the slot cut across the head.
+// moved by shank_offset along y (across the slot), united; the slot cut
+// across the head.
 struct ScrewGeometry {
   static constexpr double kAxisX = -17.89811369191, kAxisY = -0.826297072243;
   static constexpr double kTop = 7.93633;           // the dome's apex on the axis
@@ -114,37 +115,37 @@ inline TopoDS_Shape screwSolid(const std::map<std::string, double>& v) {
   const double w = v.at("slot_width"), depth = v.at("slot_depth"), r = v.at("shank_diameter") / 2,
                length = v.at("length"), offset = v.at("shank_offset");
   const gp_Ax1 axis(gp_Pnt(G::kAxisX, G::kAxisY, 0), gp::DZ());
-  // A point of the profile plane y = axis y, at radius rho from `x0`.
-  const auto at = [&](double x0, double rho, double z) { return gp_Pnt(x0 + rho, G::kAxisY, z); };
+  // A point of the profile plane at `y`, at radius rho from the axis's x.
+  const auto at = [&](double y, double rho, double z) { return gp_Pnt(G::kAxisX + rho, y, z); };
   // Head: the dome's arc, the countersink, the axis.
   const double mid_rho = 5.0;
   const double mid_z = G::kDomeCentreZ + std::sqrt(G::kDomeRadius * G::kDomeRadius -
                                                    std::pow(mid_rho - G::kDomeCentreRho, 2));
+  const double y = G::kAxisY;
   const Handle(Geom_TrimmedCurve) dome =
-      GC_MakeArcOfCircle(at(G::kAxisX, 0, G::kTop), at(G::kAxisX, mid_rho, mid_z),
-                         at(G::kAxisX, G::kRimRho, G::kRimZ))
+      GC_MakeArcOfCircle(at(y, 0, G::kTop), at(y, mid_rho, mid_z), at(y, G::kRimRho, G::kRimZ))
           .Value();
   const TopoDS_Wire head_wire =
       BRepBuilderAPI_MakeWire(
           BRepBuilderAPI_MakeEdge(dome).Edge(),
-          BRepBuilderAPI_MakeEdge(at(G::kAxisX, G::kRimRho, G::kRimZ), at(G::kAxisX, 0, G::kApexZ))
-              .Edge(),
-          BRepBuilderAPI_MakeEdge(at(G::kAxisX, 0, G::kApexZ), at(G::kAxisX, 0, G::kTop)).Edge())
+          BRepBuilderAPI_MakeEdge(at(y, G::kRimRho, G::kRimZ), at(y, 0, G::kApexZ)).Edge(),
+          BRepBuilderAPI_MakeEdge(at(y, 0, G::kApexZ), at(y, 0, G::kTop)).Edge())
           .Wire();
   const TopoDS_Shape head =
       BRepPrimAPI_MakeRevol(BRepBuilderAPI_MakeFace(head_wire).Face(), axis).Shape();
-  // Shank: its own axis moved by `offset` along x.
-  const double x0 = G::kAxisX + offset;
+  // Shank: its own axis moved by `offset` along y.
+  const double shank_y = G::kAxisY + offset;
   const double tip_z = G::kTop - length;
   const double chamfer_z = tip_z + (r - G::kTipChamferRho);
   BRepBuilderAPI_MakePolygon shank_profile;
-  for (const gp_Pnt& p : {at(x0, 0, G::kShankTopZ), at(x0, r, G::kShankTopZ), at(x0, r, chamfer_z),
-                          at(x0, G::kTipChamferRho, tip_z), at(x0, 0, tip_z)})
+  for (const gp_Pnt& p :
+       {at(shank_y, 0, G::kShankTopZ), at(shank_y, r, G::kShankTopZ), at(shank_y, r, chamfer_z),
+        at(shank_y, G::kTipChamferRho, tip_z), at(shank_y, 0, tip_z)})
     shank_profile.Add(p);
   shank_profile.Close();
   const TopoDS_Shape shank =
       BRepPrimAPI_MakeRevol(BRepBuilderAPI_MakeFace(shank_profile.Wire()).Face(),
-                            gp_Ax1(gp_Pnt(x0, G::kAxisY, 0), gp::DZ()))
+                            gp_Ax1(gp_Pnt(G::kAxisX, shank_y, 0), gp::DZ()))
           .Shape();
   const TopoDS_Shape body = BRepAlgoAPI_Fuse(head, shank).Shape();
   const TopoDS_Shape slot =

@@ -439,6 +439,7 @@ StepSolid readStepSolid(const std::filesystem::path& path, const StepTessellatio
   const std::string file = path.string();
   requireTolerances(tessellation, file);
   StepSolid solid;
+  solid.chord_tolerance_mm = tessellation.chord_tolerance_mm;
   TriangleSoup soup;
   std::vector<uint32_t> soup_face;
   {

@@ -36,11 +36,34 @@ std::vector<Eigen::Index> freeColumns(const ForwardModel& model, const Linearize
   return column;
 }
 
+// A STEP solid's curved faces are facets within half the chord tolerance of
+// the CAD surfaces (OpenCASCADE divides curved edges within t / 2), in the
+// model and in no real part: each length dimension the model measures is
+// uncertain by that much, rectangular over +-t / 2 (docs/method.md,
+// "Uncertainty"). Zero for a part without curved STEP faces.
+struct Facets {
+  double u = 0.0;  // mm
+  std::string quantity;
+};
+Facets facetsOf(const PartModel& part) {
+  const PartModel::StepFaces step = part.stepFaces();
+  if (!step.solid) return {};
+  const bool curved = std::any_of(step.solid->faces.begin(), step.solid->faces.end(),
+                                  [](const StepFace& f) { return f.surface.kind != SurfaceKind::kPlane; });
+  if (!curved) return {};
+  const double half = 0.5 * step.solid->chord_tolerance_mm;
+  return {half / std::sqrt(3.0),
+          fmt::format("the model's facets of the STEP solid's curved faces: within {} mm of them "
+                      "(half its chord tolerance), rectangular",
+                      half)};
+}
+
 // Each free dimension's budget (its components, u_c and U), appended to
 // budget.dimensions; `m`: the residuals the statistical part is from.
 void addDimensions(const ForwardModel& model, const std::vector<Eigen::Index>& column,
                    const Covariance& covariance, const std::vector<Influence>& influences,
-                   const Eigen::MatrixXd& total, Eigen::Index m, UncertaintyBudget& budget) {
+                   const Facets& facets, const Eigen::MatrixXd& total, Eigen::Index m,
+                   UncertaintyBudget& budget) {
   const auto& dims = model.part().dimensions();
   const auto& free = model.freeDimensionIndices();
   for (size_t j = 0; j < free.size(); ++j) {
@@ -56,6 +79,8 @@ void addDimensions(const ForwardModel& model, const std::vector<Eigen::Index>& c
       const double d = f.delta_theta(c);
       du.components.push_back({f.name, f.quantity, f.u, f.unit, d / f.u, std::abs(d)});
     }
+    if (facets.u > 0.0 && unit == "mm")
+      du.components.push_back({"facets", facets.quantity, facets.u, "mm", 1.0, facets.u});
     du.combined = std::sqrt(std::max(0.0, total(c, c)));
     du.expanded = du.identifiable ? budget.coverage_factor * du.combined : 0.0;
     budget.dimensions.push_back(std::move(du));
@@ -125,10 +150,18 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
   const std::vector<bi::InfluenceMove> moves = bi::listInfluences(model, fit.level, at.level);
   const std::vector<Influence> influences = bi::propagateInfluences(at, moves, budget.notes);
 
-  // The total covariance and each free dimension's budget.
-  const Eigen::MatrixXd total = totalCovariance(covariance.statistical, influences);
+  // The total covariance (with the facets' share of each length dimension,
+  // independent from one dimension to another) and each free dimension's
+  // budget.
+  Eigen::MatrixXd total = totalCovariance(covariance.statistical, influences);
   const std::vector<Eigen::Index> column = freeColumns(model, fit);
-  addDimensions(model, column, covariance, influences, total, fit.residuals.size(), budget);
+  const Facets facets = facetsOf(model.part());
+  const auto& free = model.freeDimensionIndices();
+  for (size_t j = 0; j < free.size(); ++j)
+    if (model.part().dimensions()[static_cast<size_t>(free[j])].unit == "mm")
+      total(column[j], column[j]) += facets.u * facets.u;
+  addDimensions(model, column, covariance, influences, facets, total, fit.residuals.size(),
+                budget);
   bi::addCombinations({model, theta, model.freeDimensionIndices(), column, total, covariance.null},
                       budget);
   if (fit.prior)

@@ -85,6 +85,7 @@ struct StepSolid {
   std::vector<StepFace> faces;          // faces[i].index == i + 1
   std::vector<uint32_t> triangle_face;  // per mesh triangle, the face's position in `faces`
   std::string sha256;                   // of the file's bytes
+  double chord_tolerance_mm = 0.0;      // the tessellation's (StepTessellation)
   // "face 3 of 6 (#42 'top', plane)".
   std::string describe(size_t face) const;
 };

@@ -237,7 +237,7 @@ class PartRun:
         wr = s.write_dataset(folder, self.kind, self.pm.path, dims, shots, shadow, desc, [])
         e0 = [float(v) for v in euler_from_matrix(R0)]
         return {"folder": os.path.relpath(folder, s.out), "depth": depth, "dims": dims, "white_region": wr,
-                "rotation_deg": rot, "translation_axis": [float(v) for v in axis], "stage_axis": [float(v) for v in sax],
+                "base_rotation_deg": [float(b) for b in base], "rotation_deg": rot, "translation_axis": [float(v) for v in axis], "stage_axis": [float(v) for v in sax],
                 "rotation_angle_deg": angle, "e": [e0, euler_near(R2, e0)],
                 "centre_t00": [float(v) for v in c0],
                 "poses": {n: pose_json(R, t) for n, R, t in poses}}
@@ -264,6 +264,14 @@ class PartRun:
             es = st["e"][:1] if n_r == 2 else st["e"]
             lo = [5 * math.floor((min(e[i] for e in es) - 8) / 5) for i in range(3)]
             hi = [5 * math.ceil((max(e[i] for e in es) + 8) / 5) for i in range(3)]
+            if self.kind == "screw" and n_r == 2:
+                # A screw is nearly a solid of revolution: only its slot tells its turn about its axis, and
+                # bounds of +-8 deg let a pose search settle about 5 deg off, in a minimum of ten times the
+                # loss. The lab's V-block and stop set the screw's orientation (the drawn base rotation,
+                # which the lab knows as its fixture's setting) and hold each shot within 3 deg of it
+                # (placement()'s jitter): the pair's bounds are the setting +-4 deg.
+                lo = [math.floor(st["base_rotation_deg"][i] - 4) for i in range(3)]
+                hi = [math.ceil(st["base_rotation_deg"][i] + 4) for i in range(3)]
             for mat, path in (("", f"{up}../calibration/material.json"), ("_true_material", mat_true)):
                 job = {"description": (f"lab2 {self.m.cfg['id']}: {self.kind} from t00 and t01 (translated by exactly "
                                        f"{STEP_MM} mm){' and r00 (rotated)' if n_r == 3 else ''}, from values "

@@ -50,7 +50,8 @@ def main():
     ap.add_argument("--source", required=True)
     ap.add_argument("--work", required=True)
     a = ap.parse_args()
-    source, work = Path(a.source), Path(a.work)
+    source, work = Path(a.source).resolve(), Path(a.work).resolve()
+    xgauge = str(Path(a.xgauge).resolve())
     shutil.rmtree(work, ignore_errors=True)
     work.mkdir(parents=True)
     for folder in ("examples", "datasets", "parts"):
@@ -61,7 +62,7 @@ def main():
     printed = {}
     for argv in steps:
         print("+ xgauge", " ".join(argv), flush=True)
-        r = subprocess.run([a.xgauge] + argv, cwd=work, capture_output=True, text=True)
+        r = subprocess.run([xgauge] + argv, cwd=work, capture_output=True, text=True)
         print(r.stdout, r.stderr, sep="", flush=True)
         # A measurement's exit status is its verdict: 0 conforms, 2
         # inconclusive, 3 does not conform; 1 is a failure.

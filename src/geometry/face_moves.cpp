@@ -1,5 +1,7 @@
 #include "face_moves.h"
 
+#include "smallest_root_sets.h"
+
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
@@ -38,22 +40,6 @@ double distanceToTriangle(const Vec3& p, const Vec3& a, const Vec3& b, const Vec
   return (p - (a + ab * (vb * denominator) + ac * (vc * denominator))).norm();
 }
 
-class UnionFind {
- public:
-  explicit UnionFind(size_t n) : parent_(n) { std::iota(parent_.begin(), parent_.end(), 0); }
-  size_t root(size_t i) {
-    while (parent_[i] != i) i = parent_[i] = parent_[parent_[i]];
-    return i;
-  }
-  void join(size_t a, size_t b) {
-    a = root(a), b = root(b);
-    if (a != b) parent_[std::max(a, b)] = std::min(a, b);
-  }
-
- private:
-  std::vector<size_t> parent_;
-};
-
 Vec3 readPoint(const ConfigNode& node) {
   if (!node.isArray() || node.size() != 3) node.fail("expected a list of 3 numbers [x, y, z]");
   return {node[0].number(), node[1].number(), node[2].number()};
@@ -83,7 +69,7 @@ class Resolver {
         const uint32_t f = solid.triangle_face[t];
         if (std::find(faces.begin(), faces.end(), f) == faces.end()) faces.push_back(f);
       }
-    UnionFind sets(solid.faces.size());
+    SmallestRootSets sets(solid.faces.size());
     for (const auto& faces : vertex_faces)
       for (size_t i = 0; i < faces.size(); ++i)
         for (size_t j = i + 1; j < faces.size(); ++j)

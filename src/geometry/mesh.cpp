@@ -1,5 +1,7 @@
 #include "xgauge/geometry/mesh.h"
 
+#include "smallest_root_sets.h"
+
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -155,25 +157,6 @@ void requireClosedMesh(const TriangleMesh& mesh, const SourceLocation& where) {
 }
 
 namespace {
-
-// Union-find over vertex indices whose root is the smallest index of a set.
-class SmallestRootSets {
- public:
-  explicit SmallestRootSets(size_t n) : parent_(n) {
-    std::iota(parent_.begin(), parent_.end(), uint32_t{0});
-  }
-  uint32_t root(uint32_t v) {
-    while (parent_[v] != v) v = parent_[v] = parent_[parent_[v]];
-    return v;
-  }
-  void join(uint32_t a, uint32_t b) {
-    a = root(a), b = root(b);
-    if (a != b) parent_[std::max(a, b)] = std::min(a, b);
-  }
-
- private:
-  std::vector<uint32_t> parent_;
-};
 
 struct CellHash {
   size_t operator()(const std::array<int64_t, 3>& cell) const {

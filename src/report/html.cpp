@@ -17,30 +17,6 @@
 namespace xgauge {
 namespace {
 
-// Text for an HTML element or attribute.
-std::string escapeHtml(std::string_view text) {
-  std::string out;
-  for (char c : text) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
-
 // The box average of `image` over factor x factor blocks (partial blocks at
 // the right and bottom edges average what they have); non-finite pixels
 // stay out of the average, and a block of none is NaN.
@@ -70,6 +46,29 @@ nlohmann::json pictureJson(const std::string& png, const PixelRect& at, int fact
 }
 
 }  // namespace
+
+std::string escapeHtml(std::string_view text) {
+  std::string out;
+  for (char c : text) {
+    switch (c) {
+      case '&':
+        out += "&amp;";
+        break;
+      case '<':
+        out += "&lt;";
+        break;
+      case '>':
+        out += "&gt;";
+        break;
+      case '"':
+        out += "&quot;";
+        break;
+      default:
+        out += c;
+    }
+  }
+  return out;
+}
 
 std::string_view reportKindName(ReportKind kind) {
   switch (kind) {

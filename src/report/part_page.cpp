@@ -15,28 +15,6 @@ namespace {
 // A label needs this many visible pixels of its face to be drawn.
 constexpr int kLabelPixels = 40;
 
-std::string escape(const std::string& text) {
-  std::string out;
-  for (const char c : text) {
-    switch (c) {
-      case '&':
-        out += "&amp;";
-        break;
-      case '<':
-        out += "&lt;";
-        break;
-      case '>':
-        out += "&gt;";
-        break;
-      case '"':
-        out += "&quot;";
-        break;
-      default:
-        out += c;
-    }
-  }
-  return out;
-}
 
 Rgb hueOf(const std::string& type) {
   if (type == "plane") return {158, 202, 225};
@@ -74,7 +52,7 @@ std::string page(const std::string& title, const std::string& body) {
 <p>Written by xgauge on {3}.</p>
 </body></html>
 )",
-                     escape(title), kStyle, body, utcTimestamp());
+                     escapeHtml(title), kStyle, body, utcTimestamp());
 }
 
 // One picture with its labels; `label` names a region (empty: none).
@@ -87,11 +65,11 @@ std::string figure(const PartPicture& picture,
     if (text.empty()) continue;
     labels += fmt::format(R"(<span class="label" style="left:{:.2f}%;top:{:.2f}%">{}</span>)",
                           100.0 * (l.x + 0.5) / picture.width,
-                          100.0 * (l.y + 0.5) / picture.height, escape(text));
+                          100.0 * (l.y + 0.5) / picture.height, escapeHtml(text));
   }
   return fmt::format(
       R"(<figure><div class="picture"><img alt="{0}" src="{1}">{2}</div><figcaption>from the {0}</figcaption></figure>)",
-      escape(picture.view), pngDataUri(encodePicture(picture)), labels);
+      escapeHtml(picture.view), pngDataUri(encodePicture(picture)), labels);
 }
 
 std::string number(double value) { return fmt::format("{:.4f}", value); }
@@ -177,8 +155,8 @@ std::string facesPage(const std::string& title, const StepSolid& solid,
     body += fmt::format(
         "<tr><td>{}</td><td>{}</td><td class=l>{}</td><td class=l>{}</td><td>{:.3f}</td>"
         "<td class=l>{}</td><td class=l>{}</td><td>{}</td></tr>",
-        face.index, entityName(face), escape(face.name),
-        escape(face.surface_type), face.area_mm2, point(face.centroid_mm), direction, radius);
+        face.index, entityName(face), escapeHtml(face.name),
+        escapeHtml(face.surface_type), face.area_mm2, point(face.centroid_mm), direction, radius);
   }
   body += "</table>";
   return page(title, body);
@@ -198,18 +176,18 @@ std::string checkPage(const std::string& title,
     body += fmt::format(
         "<tr><td class=l>{}</td><td>{} {}</td><td>{}</td><td>{:.4f}</td><td>{:.4f}</td>"
         "<td class=l>{} face{}</td></tr>",
-        escape(s.name), s.nominal, s.unit, s.step, s.buildable_low, s.buildable_high,
+        escapeHtml(s.name), s.nominal, s.unit, s.step, s.buildable_low, s.buildable_high,
         s.moved.size(), s.moved.size() == 1 ? "" : "s");
   body += "</table>";
   for (const DimensionCheckSection& s : sections) {
     body += fmt::format("<h2>{}</h2><p>nominal {} {}; buildable from {:.4f} ({}) to {:.4f} "
                         "({}).</p>",
-                        escape(s.name), s.nominal, s.unit, s.buildable_low,
-                        escape(s.low_reason), s.buildable_high, escape(s.high_reason));
+                        escapeHtml(s.name), s.nominal, s.unit, s.buildable_low,
+                        escapeHtml(s.low_reason), s.buildable_high, escapeHtml(s.high_reason));
     const auto list = [&](const char* what, const std::vector<std::string>& faces) {
       if (faces.empty()) return;
       body += fmt::format("<p>{}:</p><ul>", what);
-      for (const std::string& face : faces) body += "<li>" + escape(face) + "</li>";
+      for (const std::string& face : faces) body += "<li>" + escapeHtml(face) + "</li>";
       body += "</ul>";
     };
     list("Moves", s.moved);

@@ -32,6 +32,9 @@ std::string reportPage(ReportKind kind, std::string_view title, const nlohmann::
 void writeReport(const std::filesystem::path& path, ReportKind kind, std::string_view title,
                  const nlohmann::json& data);
 
+// Text for an HTML element or attribute: & < > " as entities.
+std::string escapeHtml(std::string_view text);
+
 // The current time, UTC, ISO 8601 to the second ("2026-11-30T14:55:02Z"):
 // when a page was written.
 std::string utcTimestamp();

@@ -11,8 +11,8 @@
 // fixed pseudo-inverse, curved faces by Gauss-Newton). The render: 1024 x
 // 1024 pixels of 0.4 mm, one sample per pixel, the part about half the
 // panel across, on every core (the fit's renders), into a preallocated
-// image; the placement runs on one thread, as the fit calls it. Each figure
-// is the median of repeated calls.
+// image; the placement (its loops over vertices and triangles) on every
+// core as well. Each figure is the median of repeated calls.
 #include "xgauge/core/parallel.h"
 #include "xgauge/geometry/part_model.h"
 #include "xgauge/material/exponential_sum.h"
@@ -90,7 +90,7 @@ void benchPart(const std::filesystem::path& file) {
 
 int main() {
   const std::filesystem::path root = XGAUGE_SOURCE_DIR;
-  std::printf("render on every core (%u), placement on one\n", std::thread::hardware_concurrency());
+  std::printf("render and placement on every core (%u)\n", std::thread::hardware_concurrency());
   std::printf("%-26s %9s %9s %12s %12s %9s\n", "part", "triangles", "vertices", "placement ms",
               "1024^2 ms", "ratio");
   for (const char* part : {"examples/step/prism_a.json", "examples/step/bracket.json",

@@ -2,9 +2,13 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
+#include <tbb/blocked_range.h>
+#include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 #include <fmt/format.h>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <map>
 #include <utility>
@@ -19,6 +23,9 @@ constexpr double kMeetToleranceMm = 1e-6;
 // Directions with a smaller eigenvalue of the gradients' normal matrix than
 // this times the largest are left alone (tangent surfaces, parallel planes).
 constexpr double kRankCutoff = 1e-10;
+// Unit gradients whose Gram determinant exceeds this are independent enough
+// for the closed-form step (1e-6: 0.06 degrees apart).
+constexpr double kCrossingDeterminant = 1e-6;
 // The pull of a free vertex towards its nominal place, beside its
 // neighbours' unit weights: what keeps a region without anchors in place.
 constexpr double kHarmonicPull = 1e-6;
@@ -61,27 +68,39 @@ class FacedShape final : public Shape {
     for (const Triangle& t : triangles_) nominal_normals_.push_back(normalOf(nominal_vertices_, t));
   }
 
+  // Each vertex is a pure function of the scalars: the loops run on every
+  // core and give the same numbers on any number.
   void place(std::span<const double> s, std::span<Vec3> out) const override {
     const Moved& moved = surfacesFor(s);
-    for (uint32_t v = 0; v < vertex_count_; ++v)
-      if (plans_[v].method != Method::kHarmonic) out[v] = placeVertex(v, moved);
+    forEach(vertex_count_, [&](size_t v) {
+      if (plans_[v].method != Method::kHarmonic) out[v] = placeVertex(static_cast<uint32_t>(v), moved);
+    });
     placeFree(edges_, moved, out);
     placeFree(insides_, moved, out);
   }
 
+  // The first failure in vertex order, then in triangle order, whatever the
+  // thread count.
   std::optional<std::string> placementProblem(std::span<const double> s,
                                               std::span<const Vec3> vertices) const override {
     const Moved& moved = surfacesFor(s);
-    for (uint32_t v = 0; v < vertex_count_; ++v) {
+    const size_t first_apart = firstWhere(vertex_count_, [&](size_t v) {
       const Plan& plan = plans_[v];
-      if (!plan.check || !anyChanged(v, moved)) continue;
-      if (auto problem = meetProblem(v, vertices[v], moved)) return problem;
-    }
+      return plan.check && anyChanged(static_cast<uint32_t>(v), moved) &&
+             meetProblem(static_cast<uint32_t>(v), vertices[v], moved).has_value();
+    });
+    if (first_apart < vertex_count_)
+      return meetProblem(static_cast<uint32_t>(first_apart), vertices[first_apart], moved);
+    thread_local std::vector<char> scratch;
+    std::vector<char>& turned = scratch;  // this thread's, for the workers too
+    turned.assign(triangles_.size(), 0);
+    forEach(triangles_.size(), [&](size_t t) {
+      const Vec3& n0 = nominal_normals_[t];
+      turned[t] = !n0.isZero() && !(normalOf(vertices, triangles_[t]).dot(n0) > 0.0);
+    });
     std::vector<char> planar_checked(faced_->groups.size(), 0);
     for (size_t t = 0; t < triangles_.size(); ++t) {
-      const Vec3& n0 = nominal_normals_[t];
-      if (n0.isZero()) continue;
-      if (normalOf(vertices, triangles_[t]).dot(n0) > 0.0) continue;
+      if (!turned[t]) continue;
       const uint32_t face = faced_->solid.triangle_face[t];
       // Inside a plane, a folded triangle changes no path (each ray crosses
       // the plane once and counts the triangles there with their signs:
@@ -127,6 +146,29 @@ class FacedShape final : public Shape {
     std::vector<double> growth;     // terms' growth
     std::vector<char> changed;
   };
+
+  static constexpr size_t kGrain = 512;
+
+  template <typename Work>
+  static void forEach(size_t count, const Work& work) {
+    tbb::parallel_for(tbb::blocked_range<size_t>(0, count, kGrain),
+                      [&](const tbb::blocked_range<size_t>& range) {
+                        for (size_t i = range.begin(); i != range.end(); ++i) work(i);
+                      });
+  }
+
+  // The smallest i < count with test(i), or count.
+  template <typename Test>
+  static size_t firstWhere(size_t count, const Test& test) {
+    return tbb::parallel_reduce(
+        tbb::blocked_range<size_t>(0, count, kGrain), count,
+        [&](const tbb::blocked_range<size_t>& range, size_t found) {
+          for (size_t i = range.begin(); i != range.end() && i < found; ++i)
+            if (test(i)) return i;
+          return found;
+        },
+        [](size_t a, size_t b) { return std::min(a, b); });
+  }
 
   static Vec3 normalOf(std::span<const Vec3> vertices, const Triangle& t) {
     return (vertices[t[1]] - vertices[t[0]]).cross(vertices[t[2]] - vertices[t[0]]);
@@ -279,9 +321,11 @@ class FacedShape final : public Shape {
       return;
     }
     // Inside a face, and on an edge that no moving curved surface carries.
+    // Inside a face the step onto the surface is exact (its value is a
+    // distance along its gradient): only the triangles' turns are checked.
     if (plan.count == 1 || (plan.count == 2 && !curved_moves)) {
       plan.method = Method::kHarmonic;
-      plan.check = true;
+      plan.check = plan.count == 2;
       return;
     }
     if (!planes_only) {
@@ -521,12 +565,13 @@ class FacedShape final : public Shape {
     } else {
       displacement.setZero(rhs.rows(), 3);
     }
-    for (size_t i = 0; i < h.vertices.size(); ++i) {
+    const Eigen::MatrixX3d& d = displacement;  // the workers' view of this thread's solution
+    forEach(h.vertices.size(), [&](size_t i) {
       const uint32_t v = h.vertices[i];
       const Vec3 from = nominal_vertices_[v] + ownMove(h.group[i], v, moved) +
-                        displacement.row(static_cast<Eigen::Index>(i)).transpose();
+                        d.row(static_cast<Eigen::Index>(i)).transpose();
       out[v] = any || anyChanged(v, moved) ? newton(v, moved, from) : nominal_vertices_[v];
-    }
+    });
   }
 
   const Moved& surfacesFor(std::span<const double> s) const {
@@ -616,7 +661,8 @@ class FacedShape final : public Shape {
     const Surface& nominal = nominal_surfaces_[group];
     if (nominal.kind == SurfaceKind::kPlane)
       return nominal.axis * (nominal.axis.dot(moved.translation[group]) + moved.growth[group]);
-    if (nominal.kind == SurfaceKind::kOther) return moved.translation[group];
+    if (nominal.kind == SurfaceKind::kOther || moved.growth[group] == 0.0)
+      return moved.translation[group];
     return moved.translation[group] + moved.growth[group] * nominal.gradient(nominal_vertices_[v]);
   }
 
@@ -647,27 +693,52 @@ class FacedShape final : public Shape {
       // planes, cylinders, spheres and tori exactly; for cones while the
       // foot stays on the nappe), so one step along the gradient lands on
       // it; placementProblem() checks that it did.
-      const Surface& s = moved.surfaces[groups[0]];
-      const double r = s.value(q) - nominal_value[0];
-      if (std::abs(r) > kNewtonToleranceMm) q -= r * s.gradient(q);
+      Vec3 gradient;
+      const double r =
+          moved.surfaces[groups[0]].valueAndGradient(q, gradient) - nominal_value[0];
+      if (std::abs(r) > kNewtonToleranceMm) q -= r * gradient;
       return q;
     }
+    std::array<Vec3, 3> g;
+    std::array<double, 3> r;
     for (int step = 0; step < kMaxNewtonSteps; ++step) {
       Mat3 normal = Mat3::Zero();
       Vec3 rhs = Vec3::Zero();
       double worst = 0.0;
       for (size_t i = 0; i < groups.size(); ++i) {
-        const Surface& s = moved.surfaces[groups[i]];
-        const double r = s.value(q) - nominal_value[i];
-        const Vec3 gradient = s.gradient(q);
+        Vec3 gradient;
+        const double residual =
+            moved.surfaces[groups[i]].valueAndGradient(q, gradient) - nominal_value[i];
+        if (i < 3) g[i] = gradient, r[i] = residual;
         normal += gradient * gradient.transpose();
-        rhs += gradient * r;
-        worst = std::max(worst, std::abs(r));
+        rhs += gradient * residual;
+        worst = std::max(worst, std::abs(residual));
       }
       if (!(worst > kNewtonToleranceMm)) break;
-      q -= leastNormSolve(normal, rhs);
+      q -= step_(groups.size(), g, r, normal, rhs);
     }
     return q;
+  }
+
+  // The least-norm correction: two surfaces that cross (an edge) and three
+  // independent ones (a corner) in closed form, anything else (tangent
+  // surfaces, more than three) through the eigen-decomposition.
+  static Vec3 step_(size_t count, const std::array<Vec3, 3>& g, const std::array<double, 3>& r,
+                    const Mat3& normal, const Vec3& rhs) {
+    if (count == 2) {
+      const double c = g[0].dot(g[1]);
+      const double det = 1.0 - c * c;
+      if (det > kCrossingDeterminant) {
+        const double l0 = (r[0] - c * r[1]) / det, l1 = (r[1] - c * r[0]) / det;
+        return l0 * g[0] + l1 * g[1];
+      }
+    } else if (count == 3) {
+      Mat3 rows;
+      rows << g[0].transpose(), g[1].transpose(), g[2].transpose();
+      const double det = rows.determinant();
+      if (std::abs(det) > kCrossingDeterminant) return rows.inverse() * Vec3(r[0], r[1], r[2]);
+    }
+    return leastNormSolve(normal, rhs);
   }
 
   std::optional<std::string> meetProblem(uint32_t v, const Vec3& p, const Moved& moved) const {

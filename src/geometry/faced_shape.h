@@ -18,7 +18,9 @@
 //   at most kMaxNewtonSteps steps, to 1e-12 mm;
 // - on a freeform face (which can only be translated as a whole): carried
 //   by its translation.
-// Deterministic: each vertex is a pure function of the scalars.
+// Deterministic: each vertex is a pure function of the scalars, so the loops
+// over vertices and triangles run on every core (oneTBB) with the same
+// numbers on any number of them.
 //
 // Folds (Shape::placementProblem): a triangle turning over against its
 // nominal normal, or a vertex whose surfaces no longer meet (a hole grown

@@ -99,6 +99,53 @@ Vec3 Surface::gradient(const Vec3& p) const {
   return Vec3::Zero();
 }
 
+double Surface::valueAndGradient(const Vec3& p, Vec3& g) const {
+  switch (kind) {
+    case SurfaceKind::kPlane:
+      g = axis;
+      return axis.dot(p - origin);
+    case SurfaceKind::kCylinder: {
+      const Vec3 r = radial(p, origin, axis);
+      const double rho = r.norm();
+      g = rho > 0.0 ? Vec3(r / rho) : Vec3::Zero();
+      return rho - radius;
+    }
+    case SurfaceKind::kCone: {
+      const Vec3 d = p - origin;
+      const double h = d.dot(axis);
+      const Vec3 r = d - h * axis;
+      const double rho = r.norm();
+      g = cos_semi_angle * (rho > 0.0 ? Vec3(r / rho) : Vec3::Zero()) -
+          cos_semi_angle * tan_semi_angle * axis;
+      return (rho - (radius + h * tan_semi_angle)) * cos_semi_angle;
+    }
+    case SurfaceKind::kSphere: {
+      const Vec3 d = p - origin;
+      const double n = d.norm();
+      g = n > 0.0 ? Vec3(d / n) : Vec3::Zero();
+      return n - radius;
+    }
+    case SurfaceKind::kTorus: {
+      const Vec3 d = p - origin;
+      const double h = d.dot(axis);
+      const Vec3 r = d - h * axis;
+      const double rho = r.norm();
+      if (!(rho > 0.0)) {
+        g = Vec3::Zero();
+        return std::hypot(rho - radius, h) - minor_radius;
+      }
+      const Vec3 tube = p - (origin + radius * (r / rho));
+      const double n = tube.norm();
+      g = n > 0.0 ? Vec3(tube / n) : Vec3::Zero();
+      return n - minor_radius;
+    }
+    case SurfaceKind::kOther:
+      break;
+  }
+  XG_CHECK(false, "valueAndGradient() of a surface without an implicit form");
+  return 0.0;
+}
+
 Surface Surface::moved(const Vec3& t_mm, double growth_mm) const {
   Surface s = *this;
   s.origin += t_mm;

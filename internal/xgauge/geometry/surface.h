@@ -47,6 +47,9 @@ struct Surface {
   double value(const Vec3& p) const;
   // Its gradient at p; zero where undefined (on an axis, a centre).
   Vec3 gradient(const Vec3& p) const;
+  // Both at once (the placement's inner loop): value() returned, gradient()
+  // into `gradient`.
+  double valueAndGradient(const Vec3& p, Vec3& gradient) const;
 
   // The surface translated by `t_mm` and grown by `growth_mm` along the
   // direction value() increases (a plane moves along `axis`, a cylinder's or

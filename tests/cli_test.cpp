@@ -773,5 +773,85 @@ TEST_F(MeasureJob, AVerifiedMethodGivesVerdictsAnUnverifiedOneDoesNot) {
   EXPECT_FALSE(fs::exists(out("refused") + "/result.json"));
 }
 
+// xgauge part faces and part check on examples/step/bracket.step: the faces
+// listed and drawn, the dimensions checked; and bad parts refused naming the
+// dimension and the face, exit 1, nothing written.
+TEST_F(Cli, PartFacesAndCheckOfTheStepBracket) {
+  const CommandResult faces =
+      run("part faces " + kRoot + "/examples/step/bracket.step -o " + out("faces") + " -q");
+  ASSERT_EQ(faces.status, 0) << faces.output;
+  EXPECT_NE(faces.output.find("#973"), std::string::npos) << faces.output;
+  EXPECT_TRUE(fs::exists(out("faces") + "/faces.json"));
+  EXPECT_GT(fs::file_size(out("faces") + "/faces.html"), 10000u);
+  const CommandResult check =
+      run("part check " + kRoot + "/examples/step/bracket.json -o " + out("check") + " -q");
+  ASSERT_EQ(check.status, 0) << check.output;
+  std::ifstream in(out("check") + "/check.json");
+  const nlohmann::json json = nlohmann::json::parse(in);
+  EXPECT_EQ(json.at("dimensions").size(), 9u);
+  EXPECT_EQ(json.at("dimensions").at(4).at("moved_faces"), nlohmann::json::array({16, 17}));
+}
+
+TEST_F(Cli, BadFacesAreRefusedNamingTheDimensionAndTheFace) {
+  const std::string step = kRoot + "/examples/step/bracket.step";
+  const auto part = [&](const std::string& name, const std::string& dimension,
+                        const std::string& file) {
+    return write(name, R"({"description": "bad", "dimensions": [)" + dimension +
+                           R"(], "shape": {"type": "step", "file": ")" + file + R"("}})");
+  };
+  const auto length = [](const std::string& moves, const std::string& bounds = "36, \"max\": 44") {
+    return R"({"name": "base_length", "nominal": 40, "min": )" + bounds +
+           R"(, "unit": "mm", )" + moves + "}";
+  };
+  write("empty.step", "ISO-10303-21;\nHEADER;\nFILE_DESCRIPTION((''),'2;1');\n"
+                      "FILE_NAME('empty','2026-12-07T00:00:00',(''),(''),'','','');\n"
+                      "FILE_SCHEMA(('AUTOMOTIVE_DESIGN { 1 0 10303 214 1 1 1 1 }'));\nENDSEC;\n"
+                      "DATA;\n#1 = CARTESIAN_POINT('',(0.,0.,0.));\nENDSEC;\nEND-ISO-10303-21;\n");
+  const struct {
+    std::string file, expected;
+  } cases[] = {
+      {part("nowhere.json", length(R"("offset": {"faces": [{"at": [100, 100, 100]}]})"), step),
+       "dimension 'base_length', offset: no face within 0.01 mm of (100, 100, 100); the nearest is "
+       "face"},
+      {part("edge.json", length(R"("offset": {"faces": [{"at": [40, 0, 2]}]})"), step),
+       "dimension 'base_length', offset: (40, 0, 2) lies on 2 faces within 0.01 mm, face"},
+      {part("plane.json", length(R"("diameter": {"faces": [{"at": [40, 12.5, 2]}]})"), step),
+       "dimension 'base_length', diameter: face 13 of 17 (#859, plane) is a plane"},
+      {part("inverts.json",
+            length(R"("offset": {"faces": [{"at": [40, 12.5, 2]}], "datum": [{"at": [0, 12.5, 2]}]})",
+                   "10, \"max\": 44"),
+            step),
+       "dimension 'base_length' cannot take"},
+      {part("entity.json", length(R"("offset": {"faces": ["#99999"]})"), step),
+       "dimension 'base_length', offset: #99999 is no face of the STEP solid"},
+      {part("nosolid.json", length(R"("offset": {"faces": [{"at": [40, 12.5, 2]}]})"),
+            out("empty.step")),
+       "the STEP file holds no shape OpenCASCADE can read"}};
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.file);
+    const std::string folder = out("refused");
+    const CommandResult r = run("part check " + c.file + " -o " + folder + " -q");
+    EXPECT_EQ(r.status, 1) << r.output;
+    EXPECT_NE(r.output.find(c.expected), std::string::npos) << r.output;
+    EXPECT_FALSE(fs::exists(folder)) << r.output;
+  }
+  // A dimension of a STEP part that names no face moves nothing.
+  const std::string nothing = write(
+      "nothing.json",
+      R"({"description": "d", "dimensions": [{"name": "base_length", "nominal": 40, "min": 36,
+          "max": 44, "unit": "mm", "offset": {"faces": [{"at": [40, 12.5, 2]}]}},
+          {"name": "spare", "nominal": 1, "min": 0, "max": 2, "unit": "mm"}],
+          "shape": {"type": "step", "file": ")" + step + R"("}})");
+  const CommandResult moves_nothing = run("part check " + nothing + " -o " + out("n") + " -q");
+  EXPECT_EQ(moves_nothing.status, 1) << moves_nothing.output;
+  EXPECT_NE(moves_nothing.output.find("dimension 'spare' moves nothing"), std::string::npos)
+      << moves_nothing.output;
+  EXPECT_FALSE(fs::exists(out("n")));
+  // The inverted face is named with the range that can be built.
+  const CommandResult inverts = run("part check " + out("inverts.json") + " -o " + out("x") + " -q");
+  EXPECT_NE(inverts.output.find("turns over"), std::string::npos) << inverts.output;
+  EXPECT_NE(inverts.output.find("can be built from"), std::string::npos) << inverts.output;
+}
+
 }  // namespace
 }  // namespace xgauge

@@ -24,6 +24,7 @@
 #include <gtest/gtest.h>
 
 #include <cstdio>
+#include <numbers>
 #include <random>
 
 namespace xgauge {
@@ -40,6 +41,8 @@ using testing::renderPaths;
 using testing::valuesByName;
 using testing::writeStep;
 using testing::writeTestFile;
+
+constexpr double kPi = std::numbers::pi;
 
 // Debian's occt-misc package: OpenCASCADE's sample CAD files.
 constexpr const char* kOcctSamples = "/usr/share/opencascade/data/step";
@@ -475,6 +478,44 @@ TEST(StepFaces, ScrewFollowsTheScrewRebuiltByOpenCascade) {
     // longer a circle).
     EXPECT_LT(mean, nominal_mean + 2e-4);
     EXPECT_LT(worst, 0.06);
+  }
+}
+
+// A STEP solid whose faces the dimensions move, as one operand of a CSG
+// tree: the drilled block lengthened by its dimension, minus a cylinder the
+// part file describes. The volume is the block's (its hole a polygon) minus
+// the cylinder's polygon, in closed form.
+TEST(StepFaces, AFacedStepSolidIsAnOperandOfACsgTree) {
+  writeDrilledBlock();
+  const PartModel part = loadText(R"({"description": "the block minus a bore",
+    "dimensions": [
+      {"name": "length", "nominal": 30, "min": 25, "max": 35, "unit": "mm",
+       "offset": {"faces": [{"at": [30, 5, 5]}], "datum": [{"at": [0, 5, 5]}]}},
+      {"name": "bore", "nominal": 2, "min": 1, "max": 3, "unit": "mm"}],
+    "shape": {"type": "difference", "solids": [
+      {"type": "step", "file": "block.step"},
+      {"type": "cylinder", "axis": "z", "diameter": "bore", "from": -1, "to": 11, "segments": 64,
+       "translate": ["length - 5", 10, 0]}]}})");
+  ASSERT_TRUE(part.csg());
+  const auto polygon = [](double r, int n) { return 0.5 * n * r * r * std::sin(2 * kPi / n); };
+  const PartModel::StepFaces faces = part.stepFaces();
+  ASSERT_NE(faces.solid, nullptr);
+  const double hole = 6000.0 - signedVolume(faces.solid->mesh);  // the block's own hole
+  for (const double length : {30.0, 33.0}) {
+    const std::vector<double> values = part.values({{"length", length}});
+    const TriangleMesh mesh = part.mesh(values);
+    // The pieces' volumes: the block at this length, the bore's polygon.
+    const double block = signedVolume(std::span<const Vec3>(mesh.vertices),
+                                      std::span<const Triangle>(mesh.triangles)
+                                          .subspan(0, faces.solid->mesh.triangles.size()));
+    EXPECT_NEAR(block, length * 200.0 - hole, 1e-9);
+    const double bore = signedVolume(std::span<const Vec3>(mesh.vertices),
+                                     std::span<const Triangle>(mesh.triangles)
+                                         .subspan(faces.solid->mesh.triangles.size()));
+    EXPECT_NEAR(bore, polygon(1.0, 64) * 12.0, 1e-9);
+    // The bore follows the block's end: 5 mm inside it.
+    const BoundingBox box = boundingBox(mesh);
+    EXPECT_NEAR(box.max_mm.x(), length, 1e-12);
   }
 }
 

@@ -27,7 +27,7 @@ cmake -S tests/consumer -B "$tmp/build" -G Ninja -DCMAKE_BUILD_TYPE=Release \
 cmake --build "$tmp/build"
 # Only the front door's headers are installed (XGAUGE_PUBLIC_HEADERS).
 headers=$(cd "$tmp/prefix/include" && find . -type f | sort | tr '\n' ' ')
-expected="./xgauge/lab.h ./xgauge/production.h ./xgauge/radiographs.h ./xgauge/runtime.h "
+expected="./xgauge/lab.h ./xgauge/part.h ./xgauge/production.h ./xgauge/radiographs.h ./xgauge/runtime.h "
 expected+="./xgauge/version.h ./xgauge/xgauge.h "
 [[ "$headers" == "$expected" ]] ||
   { echo "consumer-test: installed headers: $headers (expected the front door's only)" >&2; exit 1; }

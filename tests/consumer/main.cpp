@@ -4,10 +4,13 @@
 // and checks what the virtual lab's truth tells: the fit is a measurement,
 // every measured dimension lies within 0.05 mm of its true value, the
 // result's JSON and reports are there, a stage callback ran, and bad
-// options and a missing job come back as failures with their reasons.
+// options and a missing job come back as failures with their reasons, and
+// xgauge/part.h lists the faces of the STEP Prism A beside the job and checks
+// the dimensions named on them.
 // Exit status 0 when every check passes.
 //   xgauge_consumer JOB TRUTH OUTPUT_FOLDER
 #include "xgauge/lab.h"
+#include "xgauge/part.h"
 #include "xgauge/production.h"
 #include "xgauge/radiographs.h"
 #include "xgauge/runtime.h"
@@ -17,6 +20,7 @@
 #include <cmath>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <string>
 
 namespace {
@@ -97,6 +101,25 @@ int main(int argc, char** argv) {
   xgauge::LotExportOptions lot_export;
   check(xgauge::exportLot(lot_export).termination == xgauge::RunTermination::kFailure,
         "an export without files is a failure");
+
+  // A part before any radiograph (xgauge/part.h): the faces of the STEP
+  // solid beside the job, and the dimensions named on them.
+  const std::filesystem::path step_folder = std::filesystem::path(argv[1]).parent_path() / "step";
+  xgauge::PartFacesOptions faces;
+  faces.step_file = step_folder / "prism_a.step";
+  faces.output_folder = std::filesystem::path(argv[3]) / "faces";
+  const xgauge::PartFacesSummary listed = xgauge::listFaces(faces);
+  check(listed.termination == xgauge::RunTermination::kDone && listed.faces == 12,
+        "Prism A's STEP solid has its 12 faces: " + listed.message);
+  xgauge::PartCheckOptions part_check;
+  part_check.part_file = step_folder / "prism_a.json";
+  part_check.output_folder = std::filesystem::path(argv[3]) / "part_check";
+  const xgauge::PartCheckSummary checked = xgauge::checkPart(part_check);
+  check(checked.termination == xgauge::RunTermination::kDone && checked.dimensions == 8,
+        "Prism A's 8 dimensions on its faces check: " + checked.message);
+  part_check.step_mm = 0.0;
+  check(xgauge::checkPart(part_check).termination == xgauge::RunTermination::kFailure,
+        "a part check with a zero step is a failure");
 
   std::printf("%s\n", failures == 0 ? "all checks passed" : "some checks FAILED");
   return failures == 0 ? 0 : 1;

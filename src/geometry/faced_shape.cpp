@@ -1,5 +1,7 @@
 #include "faced_shape.h"
 
+#include "smallest_root_sets.h"
+
 #include <Eigen/Eigenvalues>
 #include <Eigen/SparseCholesky>
 #include <tbb/blocked_range.h>
@@ -10,6 +12,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <deque>
 #include <map>
 #include <utility>
 
@@ -363,43 +366,65 @@ class FacedShape final : public Shape {
   // weighted mean of its neighbours' (weights of the mesh at nominal
   // values), the anchors among them given. A small diagonal term keeps a
   // region without anchors (a closed edge without corners) at its nominal
-  // place.
+  // place. Split into its connected pieces (one face's inside, one edge),
+  // each with its own sparse Cholesky factor: an evaluation solves only
+  // the pieces whose anchors left their surfaces' own moves, on every core.
   struct Harmonic {
-    std::vector<uint32_t> vertices;          // the free vertices, by row
+    std::vector<uint32_t> vertices;  // the free vertices, by row
     // Per row, the surface whose own move the row's displacement is taken
     // beyond (the face it lies inside); kNoGroup: none (on an edge).
     std::vector<uint32_t> group;
-    std::vector<uint32_t> anchor_first{0};   // per row, its anchors in `anchors`
-    std::vector<std::pair<uint32_t, double>> anchors;  // (vertex, weight)
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> system;
+    struct Piece {
+      std::vector<uint32_t> rows;                         // rows of `vertices`, ascending
+      std::vector<uint32_t> anchor_first{0};              // per row, its anchors in `anchors`
+      std::vector<std::pair<uint32_t, double>> anchors;   // (vertex, weight)
+      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> system;
+    };
+    std::deque<Piece> pieces;  // ordered by their first row (a deque: a factor cannot move)
 
     // `weights[v]`: (neighbour, weight) pairs v's displacement follows,
     // symmetric (w(v, n) == w(n, v) where both are free); `row` maps a
     // vertex to its row or -1 (an anchor).
     void build(const std::vector<std::map<uint32_t, double>>& weights,
                const std::vector<int32_t>& row) {
-      if (vertices.empty()) return;
-      std::vector<Eigen::Triplet<double>> entries;
-      for (const uint32_t v : vertices) {
-        const int32_t r = row[v];
-        double total = 0.0;
-        for (const auto& [n, w] : weights[v]) total += w;
-        entries.emplace_back(r, r, total * (1.0 + kHarmonicPull));
-        for (const auto& [n, w] : weights[v]) {
-          if (row[n] >= 0) {
-            entries.emplace_back(r, row[n], -w);
-          } else {
-            anchors.emplace_back(n, w);
-          }
+      SmallestRootSets sets(vertices.size());
+      for (size_t r = 0; r < vertices.size(); ++r)
+        for (const auto& [n, w] : weights[vertices[r]])
+          if (row[n] >= 0) sets.join(static_cast<uint32_t>(r), static_cast<uint32_t>(row[n]));
+      std::vector<int32_t> piece_of(vertices.size(), -1), local(vertices.size(), -1);
+      for (uint32_t r = 0; r < vertices.size(); ++r) {
+        const uint32_t root = sets.root(r);
+        if (piece_of[root] < 0) {
+          piece_of[root] = static_cast<int32_t>(pieces.size());
+          pieces.emplace_back();
         }
-        anchor_first.push_back(static_cast<uint32_t>(anchors.size()));
+        Piece& piece = pieces[static_cast<size_t>(piece_of[root])];
+        local[r] = static_cast<int32_t>(piece.rows.size());
+        piece.rows.push_back(r);
       }
-      const auto n = static_cast<Eigen::Index>(vertices.size());
-      Eigen::SparseMatrix<double> laplacian(n, n);
-      laplacian.setFromTriplets(entries.begin(), entries.end());
-      laplacian.makeCompressed();
-      system.compute(laplacian);
-      XG_CHECK(system.info() == Eigen::Success, "a Laplacian of the free vertices");
+      for (Piece& piece : pieces) {
+        std::vector<Eigen::Triplet<double>> entries;
+        for (const uint32_t r : piece.rows) {
+          const uint32_t v = vertices[r];
+          double total = 0.0;
+          for (const auto& [n, w] : weights[v]) total += w;
+          entries.emplace_back(local[r], local[r], total * (1.0 + kHarmonicPull));
+          for (const auto& [n, w] : weights[v]) {
+            if (row[n] >= 0) {
+              entries.emplace_back(local[r], local[static_cast<size_t>(row[n])], -w);
+            } else {
+              piece.anchors.emplace_back(n, w);
+            }
+          }
+          piece.anchor_first.push_back(static_cast<uint32_t>(piece.anchors.size()));
+        }
+        const auto n = static_cast<Eigen::Index>(piece.rows.size());
+        Eigen::SparseMatrix<double> laplacian(n, n);
+        laplacian.setFromTriplets(entries.begin(), entries.end());
+        laplacian.makeCompressed();
+        piece.system.compute(laplacian);
+        XG_CHECK(piece.system.info() == Eigen::Success, "a Laplacian of the free vertices");
+      }
     }
   };
 
@@ -548,29 +573,29 @@ class FacedShape final : public Shape {
   // moves along it (a chamfer's, as its shank grows) spreads that move over
   // its inside.
   void placeFree(const Harmonic& h, const Moved& moved, std::span<Vec3> out) const {
-    if (h.vertices.empty()) return;
-    thread_local Eigen::MatrixX3d rhs, displacement;
-    rhs.setZero(static_cast<Eigen::Index>(h.vertices.size()), 3);
-    bool any = false;
-    for (size_t i = 0; i < h.vertices.size(); ++i)
-      for (uint32_t k = h.anchor_first[i]; k < h.anchor_first[i + 1]; ++k) {
-        const auto [a, weight] = h.anchors[k];
-        const Vec3 d = out[a] - nominal_vertices_[a] - ownMove(h.group[i], a, moved);
-        if (d.isZero()) continue;
-        rhs.row(static_cast<Eigen::Index>(i)) += weight * d.transpose();
-        any = true;
+    tbb::parallel_for(size_t{0}, h.pieces.size(), [&](size_t k) {
+      const Harmonic::Piece& piece = h.pieces[k];
+      Eigen::MatrixX3d rhs = Eigen::MatrixX3d::Zero(static_cast<Eigen::Index>(piece.rows.size()), 3);
+      bool any = false;
+      for (size_t i = 0; i < piece.rows.size(); ++i) {
+        const uint32_t row = piece.rows[i];
+        for (uint32_t a = piece.anchor_first[i]; a < piece.anchor_first[i + 1]; ++a) {
+          const auto [anchor, weight] = piece.anchors[a];
+          const Vec3 d =
+              out[anchor] - nominal_vertices_[anchor] - ownMove(h.group[row], anchor, moved);
+          if (d.isZero()) continue;
+          rhs.row(static_cast<Eigen::Index>(i)) += weight * d.transpose();
+          any = true;
+        }
       }
-    if (any) {
-      displacement = h.system.solve(rhs);
-    } else {
-      displacement.setZero(rhs.rows(), 3);
-    }
-    const Eigen::MatrixX3d& d = displacement;  // the workers' view of this thread's solution
-    forEach(h.vertices.size(), [&](size_t i) {
-      const uint32_t v = h.vertices[i];
-      const Vec3 from = nominal_vertices_[v] + ownMove(h.group[i], v, moved) +
-                        d.row(static_cast<Eigen::Index>(i)).transpose();
-      out[v] = any || anyChanged(v, moved) ? newton(v, moved, from) : nominal_vertices_[v];
+      const Eigen::MatrixX3d displacement = any ? Eigen::MatrixX3d(piece.system.solve(rhs)) : rhs;
+      forEach(piece.rows.size(), [&](size_t i) {
+        const uint32_t row = piece.rows[i];
+        const uint32_t v = h.vertices[row];
+        const Vec3 from = nominal_vertices_[v] + ownMove(h.group[row], v, moved) +
+                          displacement.row(static_cast<Eigen::Index>(i)).transpose();
+        out[v] = any || anyChanged(v, moved) ? newton(v, moved, from) : nominal_vertices_[v];
+      });
     });
   }
 

@@ -3,6 +3,7 @@
 #include "smallest_root_sets.h"
 
 #include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -16,16 +17,31 @@ namespace xgauge {
 double signedVolume(std::span<const Vec3> vertices, std::span<const Triangle> triangles) {
   if (vertices.empty()) return 0.0;
   // Sum of signed tetrahedra (origin, a, b, c) / 6. Taking the origin at a
-  // vertex keeps the terms small for parts far from the part origin.
+  // vertex keeps the terms small for parts far from the part origin. Summed
+  // by fixed blocks of triangles, the blocks on every core and their sums
+  // in order: the same number on any thread count (a fit checks every
+  // evaluation's volume).
+  constexpr size_t kBlock = 4096;
   const Vec3& origin = vertices.front();
-  double six_volume = 0.0;
-  for (const Triangle& t : triangles) {
-    const Vec3 a = vertices[t[0]] - origin;
-    const Vec3 b = vertices[t[1]] - origin;
-    const Vec3 c = vertices[t[2]] - origin;
-    six_volume += a.dot(b.cross(c));
+  const size_t blocks = (triangles.size() + kBlock - 1) / kBlock;
+  std::vector<double> six_volumes(blocks, 0.0);
+  const auto sum_block = [&](size_t b) {
+    double six_volume = 0.0;
+    for (size_t i = b * kBlock; i < std::min(triangles.size(), (b + 1) * kBlock); ++i) {
+      const Triangle& t = triangles[i];
+      const Vec3 a = vertices[t[0]] - origin;
+      const Vec3 bv = vertices[t[1]] - origin;
+      const Vec3 c = vertices[t[2]] - origin;
+      six_volume += a.dot(bv.cross(c));
+    }
+    six_volumes[b] = six_volume;
+  };
+  if (blocks > 1) {
+    tbb::parallel_for(size_t{0}, blocks, sum_block);
+  } else if (blocks == 1) {
+    sum_block(0);
   }
-  return six_volume / 6.0;
+  return std::accumulate(six_volumes.begin(), six_volumes.end(), 0.0) / 6.0;
 }
 
 double signedVolume(const TriangleMesh& mesh) { return signedVolume(mesh.vertices, mesh.triangles); }

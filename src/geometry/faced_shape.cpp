@@ -8,11 +8,11 @@
 #include <tbb/parallel_for.h>
 #include <tbb/parallel_reduce.h>
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <deque>
 #include <map>
 #include <utility>
 
@@ -69,6 +69,8 @@ class FacedShape final : public Shape {
     harmonicSystems();
     outlines();
     for (const Triangle& t : triangles_) nominal_normals_.push_back(normalOf(nominal_vertices_, t));
+    for (uint32_t t = 0; t < triangles_.size(); ++t)
+      if (!keepsItsTurn(triangles_[t])) may_turn_.push_back(t);
   }
 
   // Each vertex is a pure function of the scalars: the loops run on every
@@ -87,6 +89,12 @@ class FacedShape final : public Shape {
   std::optional<std::string> placementProblem(std::span<const double> s,
                                               std::span<const Vec3> vertices) const override {
     const Moved& moved = surfacesFor(s);
+    for (size_t g = 0; g < faced_->groups.size(); ++g)
+      if (moved.changed[g] && moved.surfaces[g].kind == SurfaceKind::kCylinder &&
+          !(moved.surfaces[g].radius > 0.0))
+        return fmt::format("{} shrinks to no radius (moved by {})",
+                           faced_->describeFace(faced_->groups[g].faces[0]),
+                           fmt::join(faced_->group_movers[g], ", "));
     const size_t first_apart = firstWhere(vertex_count_, [&](size_t v) {
       const Plan& plan = plans_[v];
       return plan.check && anyChanged(static_cast<uint32_t>(v), moved) &&
@@ -96,14 +104,16 @@ class FacedShape final : public Shape {
       return meetProblem(static_cast<uint32_t>(first_apart), vertices[first_apart], moved);
     thread_local std::vector<char> scratch;
     std::vector<char>& turned = scratch;  // this thread's, for the workers too
-    turned.assign(triangles_.size(), 0);
-    forEach(triangles_.size(), [&](size_t t) {
+    turned.assign(may_turn_.size(), 0);
+    forEach(may_turn_.size(), [&](size_t k) {
+      const uint32_t t = may_turn_[k];
       const Vec3& n0 = nominal_normals_[t];
-      turned[t] = !n0.isZero() && !(normalOf(vertices, triangles_[t]).dot(n0) > 0.0);
+      turned[k] = !n0.isZero() && !(normalOf(vertices, triangles_[t]).dot(n0) > 0.0);
     });
     std::vector<char> planar_checked(faced_->groups.size(), 0);
-    for (size_t t = 0; t < triangles_.size(); ++t) {
-      if (!turned[t]) continue;
+    for (size_t k = 0; k < may_turn_.size(); ++k) {
+      if (!turned[k]) continue;
+      const uint32_t t = may_turn_[k];
       const uint32_t face = faced_->solid.triangle_face[t];
       // Inside a plane, a folded triangle changes no path (each ray crosses
       // the plane once and counts the triangles there with their signs:
@@ -171,6 +181,22 @@ class FacedShape final : public Shape {
           return found;
         },
         [](size_t a, size_t b) { return std::min(a, b); });
+  }
+
+  // A triangle whose vertices stay at nominal, or which its plane or
+  // cylinder carries whole (a translation, and for a cylinder a radial
+  // scaling while its radius stays positive, which placementProblem()
+  // checks), cannot turn over: the turn check skips it.
+  bool keepsItsTurn(const Triangle& t) const {
+    const auto method = [&](int k) { return plans_[t[k]].method; };
+    if (method(0) == Method::kFixed && method(1) == Method::kFixed && method(2) == Method::kFixed)
+      return true;
+    for (int k = 0; k < 3; ++k)
+      if (method(k) != Method::kCarried) return false;
+    const uint32_t g = groupsOf(t[0])[0];
+    if (groupsOf(t[1])[0] != g || groupsOf(t[2])[0] != g) return false;
+    const SurfaceKind kind = nominal_surfaces_[g].kind;
+    return kind == SurfaceKind::kPlane || kind == SurfaceKind::kCylinder;
   }
 
   static Vec3 normalOf(std::span<const Vec3> vertices, const Triangle& t) {
@@ -378,9 +404,37 @@ class FacedShape final : public Shape {
       std::vector<uint32_t> rows;                         // rows of `vertices`, ascending
       std::vector<uint32_t> anchor_first{0};              // per row, its anchors in `anchors`
       std::vector<std::pair<uint32_t, double>> anchors;   // (vertex, weight)
-      Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> system;
+      // P A P^T = L D L^T (Eigen's SimplicialLDLT with AMD ordering): P as
+      // `order` (row i of A is row order[i] of the factor), L's strictly
+      // lower part by columns, D.
+      std::vector<int> order;
+      std::vector<uint32_t> column_first{0}, lower_row;
+      std::vector<double> lower, diagonal;
+
+      // Solves A x = b in place for the three coordinates at once, reading
+      // the factor once per pass (Eigen's solve takes a column of the
+      // right-hand side at a time, three passes over L each way: the
+      // largest cost of placing a screw's vertices).
+      void solve(std::vector<Vec3>& b) const {
+        thread_local std::vector<Vec3> y;
+        y.resize(b.size());
+        for (size_t i = 0; i < b.size(); ++i) y[static_cast<size_t>(order[i])] = b[i];
+        for (size_t j = 0; j < y.size(); ++j) {
+          const Vec3 yj = y[j];
+          for (uint32_t k = column_first[j]; k < column_first[j + 1]; ++k)
+            y[lower_row[k]] -= lower[k] * yj;
+        }
+        for (size_t j = 0; j < y.size(); ++j) y[j] /= diagonal[j];
+        for (size_t j = y.size(); j-- > 0;) {
+          Vec3 sum = y[j];
+          for (uint32_t k = column_first[j]; k < column_first[j + 1]; ++k)
+            sum -= lower[k] * y[lower_row[k]];
+          y[j] = sum;
+        }
+        for (size_t i = 0; i < b.size(); ++i) b[i] = y[static_cast<size_t>(order[i])];
+      }
     };
-    std::deque<Piece> pieces;  // ordered by their first row (a deque: a factor cannot move)
+    std::vector<Piece> pieces;  // ordered by their first row
 
     // `weights[v]`: (neighbour, weight) pairs v's displacement follows,
     // symmetric (w(v, n) == w(n, v) where both are free); `row` maps a
@@ -422,8 +476,21 @@ class FacedShape final : public Shape {
         Eigen::SparseMatrix<double> laplacian(n, n);
         laplacian.setFromTriplets(entries.begin(), entries.end());
         laplacian.makeCompressed();
-        piece.system.compute(laplacian);
-        XG_CHECK(piece.system.info() == Eigen::Success, "a Laplacian of the free vertices");
+        const Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>> factor(laplacian);
+        XG_CHECK(factor.info() == Eigen::Success, "a Laplacian of the free vertices");
+        const auto& indices = factor.permutationP().indices();
+        piece.order.assign(indices.data(), indices.data() + indices.size());
+        const Eigen::SparseMatrix<double>& stored = factor.matrixL().nestedExpression();
+        for (Eigen::Index j = 0; j < stored.outerSize(); ++j) {
+          for (Eigen::SparseMatrix<double>::InnerIterator it(stored, j); it; ++it)
+            if (it.row() > j) {
+              piece.lower_row.push_back(static_cast<uint32_t>(it.row()));
+              piece.lower.push_back(it.value());
+            }
+          piece.column_first.push_back(static_cast<uint32_t>(piece.lower.size()));
+        }
+        const Eigen::VectorXd& d = factor.vectorD();
+        piece.diagonal.assign(d.data(), d.data() + d.size());
       }
     }
   };
@@ -575,7 +642,7 @@ class FacedShape final : public Shape {
   void placeFree(const Harmonic& h, const Moved& moved, std::span<Vec3> out) const {
     tbb::parallel_for(size_t{0}, h.pieces.size(), [&](size_t k) {
       const Harmonic::Piece& piece = h.pieces[k];
-      Eigen::MatrixX3d rhs = Eigen::MatrixX3d::Zero(static_cast<Eigen::Index>(piece.rows.size()), 3);
+      std::vector<Vec3> displacement(piece.rows.size(), Vec3::Zero());
       bool any = false;
       for (size_t i = 0; i < piece.rows.size(); ++i) {
         const uint32_t row = piece.rows[i];
@@ -584,16 +651,15 @@ class FacedShape final : public Shape {
           const Vec3 d =
               out[anchor] - nominal_vertices_[anchor] - ownMove(h.group[row], anchor, moved);
           if (d.isZero()) continue;
-          rhs.row(static_cast<Eigen::Index>(i)) += weight * d.transpose();
+          displacement[i] += weight * d;
           any = true;
         }
       }
-      const Eigen::MatrixX3d displacement = any ? Eigen::MatrixX3d(piece.system.solve(rhs)) : rhs;
+      if (any) piece.solve(displacement);
       forEach(piece.rows.size(), [&](size_t i) {
         const uint32_t row = piece.rows[i];
         const uint32_t v = h.vertices[row];
-        const Vec3 from = nominal_vertices_[v] + ownMove(h.group[row], v, moved) +
-                          displacement.row(static_cast<Eigen::Index>(i)).transpose();
+        const Vec3 from = nominal_vertices_[v] + ownMove(h.group[row], v, moved) + displacement[i];
         out[v] = any || anyChanged(v, moved) ? newton(v, moved, from) : nominal_vertices_[v];
       });
     });
@@ -834,6 +900,7 @@ class FacedShape final : public Shape {
   std::vector<double> nominal_values_;     // aligned with vertex_groups_: surface value at p0
   std::vector<Vec3> linear_columns_;       // aligned with vertex_groups_: pinv(N)'s columns
   std::vector<Vec3> nominal_normals_;      // per triangle, unnormalised
+  std::vector<uint32_t> may_turn_;         // the triangles the turn check looks at, ascending
   Harmonic edges_, insides_;  // the free vertices (harmonicSystems())
   std::vector<std::vector<std::pair<uint32_t, uint32_t>>> outline_;  // per plane group
 };

@@ -350,6 +350,16 @@ TEST(StepFaces, AnOffsetThatTurnsAFaceOverWithinTheBoundsIsRefused) {
                 "/dimensions/0");
 }
 
+TEST(StepFaces, AHoleShrunkToNothingWithinTheBoundsIsRefused) {
+  writeDrilledBlock();
+  expectRefused(blockPart(R"(
+    {"name": "hole", "nominal": 6, "min": 0, "max": 8, "unit": "mm",
+     "diameter": {"faces": [{"at": [18, 10, 5]}]}})"),
+                {"dimension 'hole' cannot take", "shrinks to no radius", "cylinder",
+                 "moved by hole"},
+                "/dimensions/0");
+}
+
 TEST(StepFaces, BadSelectorsAndMovesAreRefusedNamingTheDimensionAndTheFace) {
   writeDrilledBlock();
   const auto dimension = [](const std::string& move) {

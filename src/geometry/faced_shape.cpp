@@ -413,8 +413,7 @@ class FacedShape final : public Shape {
 
       // Solves A x = b in place for the three coordinates at once, reading
       // the factor once per pass (Eigen's solve takes a column of the
-      // right-hand side at a time, three passes over L each way: the
-      // largest cost of placing a screw's vertices).
+      // right-hand side at a time: three passes over L each way).
       void solve(std::vector<Vec3>& b) const {
         thread_local std::vector<Vec3> y;
         y.resize(b.size());

@@ -844,9 +844,8 @@ class FacedShape final : public Shape {
         carried = moved.translation[g];
         continue;
       }
-      if (std::isfinite(s.value(p)) &&
-          std::abs(s.value(p) - nominal_value[i]) <= kMeetToleranceMm)
-        continue;
+      const double value = s.value(p);
+      if (std::isfinite(value) && std::abs(value - nominal_value[i]) <= kMeetToleranceMm) continue;
       return meetFailure(v, p);
     }
     return std::nullopt;

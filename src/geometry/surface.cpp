@@ -49,54 +49,16 @@ void Surface::setSemiAngle(double radians) {
   tan_semi_angle = std::tan(radians);
 }
 
+// One definition of each surface's value and gradient (valueAndGradient()).
 double Surface::value(const Vec3& p) const {
-  switch (kind) {
-    case SurfaceKind::kPlane:
-      return axis.dot(p - origin);
-    case SurfaceKind::kCylinder:
-      return radial(p, origin, axis).norm() - radius;
-    case SurfaceKind::kCone: {
-      const double h = (p - origin).dot(axis);
-      return (radial(p, origin, axis).norm() - (radius + h * tan_semi_angle)) * cos_semi_angle;
-    }
-    case SurfaceKind::kSphere:
-      return (p - origin).norm() - radius;
-    case SurfaceKind::kTorus: {
-      const double h = (p - origin).dot(axis);
-      const double rho = radial(p, origin, axis).norm();
-      return std::hypot(rho - radius, h) - minor_radius;
-    }
-    case SurfaceKind::kOther:
-      break;
-  }
-  XG_CHECK(false, "value() of a surface without an implicit form");
-  return 0.0;
+  Vec3 g;
+  return valueAndGradient(p, g);
 }
 
 Vec3 Surface::gradient(const Vec3& p) const {
-  switch (kind) {
-    case SurfaceKind::kPlane:
-      return axis;
-    case SurfaceKind::kCylinder:
-      return unitOrZero(radial(p, origin, axis));
-    case SurfaceKind::kCone:
-      return cos_semi_angle * unitOrZero(radial(p, origin, axis)) -
-             cos_semi_angle * tan_semi_angle * axis;
-    case SurfaceKind::kSphere:
-      return unitOrZero(p - origin);
-    case SurfaceKind::kTorus: {
-      // From the nearest point of the centre circle towards p.
-      const Vec3 across = radial(p, origin, axis);
-      const Vec3 out = unitOrZero(across);
-      if (out.isZero()) return Vec3::Zero();
-      const Vec3 centre_line = origin + radius * out;
-      return unitOrZero(p - centre_line);
-    }
-    case SurfaceKind::kOther:
-      break;
-  }
-  XG_CHECK(false, "gradient() of a surface without an implicit form");
-  return Vec3::Zero();
+  Vec3 g;
+  valueAndGradient(p, g);
+  return g;
 }
 
 double Surface::valueAndGradient(const Vec3& p, Vec3& g) const {
@@ -106,38 +68,29 @@ double Surface::valueAndGradient(const Vec3& p, Vec3& g) const {
       return axis.dot(p - origin);
     case SurfaceKind::kCylinder: {
       const Vec3 r = radial(p, origin, axis);
-      const double rho = r.norm();
-      g = rho > 0.0 ? Vec3(r / rho) : Vec3::Zero();
-      return rho - radius;
+      g = unitOrZero(r);
+      return r.norm() - radius;
     }
     case SurfaceKind::kCone: {
-      const Vec3 d = p - origin;
-      const double h = d.dot(axis);
-      const Vec3 r = d - h * axis;
+      const double h = (p - origin).dot(axis);
+      const Vec3 r = radial(p, origin, axis);
       const double rho = r.norm();
-      g = cos_semi_angle * (rho > 0.0 ? Vec3(r / rho) : Vec3::Zero()) -
-          cos_semi_angle * tan_semi_angle * axis;
+      g = cos_semi_angle * unitOrZero(r) - cos_semi_angle * tan_semi_angle * axis;
       return (rho - (radius + h * tan_semi_angle)) * cos_semi_angle;
     }
-    case SurfaceKind::kSphere: {
-      const Vec3 d = p - origin;
-      const double n = d.norm();
-      g = n > 0.0 ? Vec3(d / n) : Vec3::Zero();
-      return n - radius;
-    }
+    case SurfaceKind::kSphere:
+      g = unitOrZero(p - origin);
+      return (p - origin).norm() - radius;
     case SurfaceKind::kTorus: {
-      const Vec3 d = p - origin;
-      const double h = d.dot(axis);
-      const Vec3 r = d - h * axis;
-      const double rho = r.norm();
-      if (!(rho > 0.0)) {
+      // From the nearest point of the centre circle towards p.
+      const Vec3 out = unitOrZero(radial(p, origin, axis));
+      if (out.isZero()) {
         g = Vec3::Zero();
-        return std::hypot(rho - radius, h) - minor_radius;
+        return std::hypot(radius, (p - origin).dot(axis)) - minor_radius;
       }
-      const Vec3 tube = p - (origin + radius * (r / rho));
-      const double n = tube.norm();
-      g = n > 0.0 ? Vec3(tube / n) : Vec3::Zero();
-      return n - minor_radius;
+      const Vec3 tube = p - (origin + radius * out);
+      g = unitOrZero(tube);
+      return tube.norm() - minor_radius;
     }
     case SurfaceKind::kOther:
       break;

@@ -25,9 +25,13 @@ struct ConfigNode::Document {
   // Line of every object member and of every object or array, by JSON
   // pointer (parsed text only); a scalar in an array takes its array's.
   std::map<std::string, int> lines;
+  // A derived document's place in the file it came from ("/job"): errors
+  // name the key as the file has it.
+  std::string prefix;
 
   SourceLocation locate(const std::string& pointer) const {
-    SourceLocation where = SourceLocation::at(origin, pointer.empty() ? "/" : pointer);
+    const std::string named = prefix + pointer;
+    SourceLocation where = SourceLocation::at(origin, named.empty() ? "/" : named);
     for (std::string p = pointer;;) {
       if (const auto it = lines.find(p); it != lines.end()) {
         where.line = it->second;
@@ -304,8 +308,31 @@ std::optional<ConfigNode> ConfigNode::find(std::string_view key) const {
 
 ConfigNode ConfigNode::at(std::string_view key) const {
   auto node = find(key);
-  if (!node) fail(fmt::format("missing key '{}'", key));
-  return *node;
+  if (node) return *node;
+  // An unknown key is named before the missing one it misspells: a
+  // "detektor" beside no "detector" is the user's typo, not an omission.
+  const auto& asked = doc_->asked[path_];
+  for (const auto& item : json_->items())
+    if (const size_t d = editDistance(item.key(), key);
+        !asked.count(item.key()) && d <= 2 && 3 * d < key.size())
+      throw Error(fmt::format("unknown key '{}'; did you mean '{}'?", item.key(), key),
+                  doc_->locate(path_ + "/" + escapeKey(item.key())));
+  fail(fmt::format("missing key '{}'", key));
+}
+
+ConfigNode ConfigNode::derived(nlohmann::json document) const {
+  auto doc = std::make_shared<Document>();
+  doc->root = std::move(document);
+  doc->origin = doc_->origin;
+  doc->prefix = doc_->prefix + path_;
+  // This node's lines, re-based: the derived document's "/a/b" is this
+  // node's "<path>/a/b" in the file.
+  for (auto it = doc_->lines.lower_bound(path_); it != doc_->lines.end(); ++it) {
+    if (!it->first.starts_with(path_)) break;
+    const std::string rest = it->first.substr(path_.size());
+    if (rest.empty() || rest.front() == '/') doc->lines.emplace(rest, it->second);
+  }
+  return ConfigNode(doc, &doc->root, "");
 }
 
 std::vector<std::string> ConfigNode::keys() const {

@@ -53,6 +53,58 @@ TEST(Config, MissingKeyNamesKeyAndFile) {
   }
 }
 
+// A required key spelled wrong is the typo, not a missing key: the unknown
+// key is named first, at its own line.
+TEST(Config, AMisspelledRequiredKeyIsNamedAsUnknownBeforeMissing) {
+  auto root = ConfigNode::parse("{\n  \"pixel_mm\": 0.2,\n  \"detektor\": {}\n}", "m.json");
+  EXPECT_EQ(root.get<double>("pixel_mm"), 0.2);
+  try {
+    root.at("detector");
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "m.json:3: /detektor: unknown key 'detektor'; did you mean 'detector'?");
+  }
+  // A key far from the missing one (or one already read) leaves "missing".
+  auto other = ConfigNode::parse(R"({"lag": 1})", "n.json");
+  try {
+    other.at("tag");  // one edit of three letters: not taken for a typo
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(std::string(e.what()), "n.json:1: /: missing key 'tag'");
+  }
+}
+
+// A swap of neighbours is one edit: "sotre" is "store", not "source".
+TEST(Config, DidYouMeanCountsASwapAsOneEdit) {
+  auto root = ConfigNode::parse(R"({"sotre": "a.sqlite"})", "plan.json");
+  EXPECT_FALSE(root.has("source"));
+  EXPECT_FALSE(root.has("store"));
+  try {
+    root.finish();
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_NE(std::string(e.what()).find("did you mean 'store'?"), std::string::npos) << e.what();
+  }
+}
+
+// A document derived from a node keeps the node's file and lines.
+TEST(Config, ADerivedDocumentKeepsTheFileAndLines) {
+  auto root = ConfigNode::parse("{\n  \"job\": {\n    \"part\": \"p.json\",\n    \"pars\": 1\n  }\n}",
+                                "plan.json");
+  nlohmann::json changed = root.at("job").json();
+  changed["part"] = "/abs/p.json";
+  const ConfigNode job = root.at("job").derived(changed);
+  EXPECT_EQ(job.get<std::string>("part"), "/abs/p.json");
+  try {
+    job.finish();
+    FAIL();
+  } catch (const Error& e) {
+    EXPECT_EQ(e.where().file, "plan.json");
+    EXPECT_EQ(e.where().line, 4) << e.what();
+    EXPECT_EQ(e.where().key_path, "/job/pars");
+  }
+}
+
 TEST(Config, SyntaxErrorGivesLineAndColumn) {
   try {
     ConfigNode::parse("{\n  \"a\": 1,\n  \"b\": ]\n}", "bad.json");

@@ -164,9 +164,8 @@ MaterialScatter materialScatterFromConfig(const ConfigNode& node) {
   return out;
 }
 
-MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
-                                        const std::filesystem::path& job_file,
-                                        bool needs_material) {
+MeasurementInputs loadJobInputs(const ConfigNode& root, const std::filesystem::path& job_file,
+                                bool needs_material) {
   MeasurementInputs in;
   in.sha256[job_file.string()] = root.sha256();
   const std::filesystem::path part_file = MeasurementJob::partFileOf(root, job_file);
@@ -208,6 +207,13 @@ MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
     in.verification = Verification::fromConfig(verification, in.job.verification_file);
     verification.finish();
   }
+  return in;
+}
+
+MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
+                                        const std::filesystem::path& job_file,
+                                        bool needs_material) {
+  MeasurementInputs in = loadJobInputs(root, job_file, needs_material);
   in.radiographs = loadRadiographs(in.job, in.machine, in.sha256);
   return in;
 }

@@ -29,6 +29,10 @@ class ConfigNode {
   static ConfigNode parse(std::string_view text, const std::string& origin);
   // Wraps an already parsed document.
   static ConfigNode fromJson(nlohmann::json document, const std::string& origin);
+  // A document made from this node's JSON (changed by the caller: paths made
+  // absolute, say) whose errors keep this node's file and lines: its "/a/b"
+  // is located at this node's "<path>/a/b".
+  ConfigNode derived(nlohmann::json document) const;
 
   bool isObject() const { return json_->is_object(); }
   bool isArray() const { return json_->is_array(); }

@@ -1,5 +1,6 @@
 // "Did you mean" hints for a misspelled key: the known key nearest by edit
-// distance (Levenshtein), within two edits.
+// distance (optimal string alignment: Levenshtein with a swap of neighbours
+// as one edit), within two edits.
 #pragma once
 
 #include <cstddef>

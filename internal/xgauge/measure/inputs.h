@@ -93,6 +93,12 @@ MeasurementInputs loadMeasurementInputs(const ConfigNode& root,
                                         const std::filesystem::path& job_file,
                                         bool needs_material);
 
+// Every input of a job but its radiographs (`radiographs` left empty): the
+// part, machine, detector file, material and verification, each read and
+// checked. An inspection plan checks its job with it before any part.
+MeasurementInputs loadJobInputs(const ConfigNode& root, const std::filesystem::path& job_file,
+                                bool needs_material);
+
 // Reads a radiograph file of any format (image/radiograph_file.h; the mean
 // of its frames when it holds several) once, recording its SHA-256 in
 // `sha256` (keyed by the path as given, NXtomo selector included). Refuses,

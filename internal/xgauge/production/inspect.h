@@ -23,6 +23,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace xgauge {
 
@@ -79,8 +80,9 @@ struct InspectSummary {
   int already = 0;       // found in the store
   int elsewhere = 0;     // claimed by another live station (left to it)
   int not_ready = 0;     // incomplete or corrupt folders left (last look)
-  int failed = 0;        // input errors (named on stderr)
+  int failed = 0;        // input errors, or (a folder run) folders incomplete or corrupt
   int not_measured = 0;  // of `measured`: fits the failure rule refused
+  std::vector<std::string> failed_parts;  // the part folders that failed, in order
 };
 
 // One line per part measured goes to `line` (stdout in the CLI): the part,

@@ -114,6 +114,30 @@ TEST_F(Cli, MisspelledMachineKey) {
                      "unknown key 'principle_point_px'");
 }
 
+// A machine whose "detector" is spelled "detektor": the unknown key is named
+// (with the line), not "missing key 'detector'".
+TEST_F(Cli, AMisspelledRequiredKeyIsNamedAsUnknown) {
+  const std::string machine = write("machine.json", R"({"source_detector_distance_mm": 1000,
+    "detektor": {"columns": 128, "rows": 96, "pixel_pitch_mm": [0.5, 0.5]}})");
+  expectCleanFailure(run(renderArgs(kRoot + "/parts/cuboid.json", machine, "")),
+                     "machine.json:2: /detektor: unknown key 'detektor'; did you mean 'detector'?");
+}
+
+// An unknown command is named, with the nearest known one, and fails; also
+// with --help after it.
+TEST_F(Cli, AnUnknownCommandIsNamedWithTheNearestOne) {
+  for (const char* args : {"nonsense", "nonsense --help", "-q mesure job.json"}) {
+    const auto r = run(args);
+    EXPECT_NE(r.status, 0) << args << ": " << r.output;
+    const std::string word = std::string(args).find("mesure") != std::string::npos ? "mesure" : "nonsense";
+    EXPECT_NE(r.output.find("unknown command '" + word + "'"), std::string::npos) << r.output;
+    EXPECT_NE(r.output.find("commands: render,"), std::string::npos) << r.output;
+  }
+  EXPECT_NE(run("mesure job.json").output.find("did you mean 'measure'?"), std::string::npos);
+  EXPECT_NE(run("inpsect").output.find("did you mean 'inspect'?"), std::string::npos);
+  EXPECT_EQ(run("--help").status, 0);  // the help itself still works
+}
+
 TEST_F(Cli, OpenMesh) {
   const std::string machine = write("machine.json", kMachine);
   const std::string part = write("open.json", R"({

@@ -11,6 +11,31 @@
 #include <cstdint>
 #include <cstdio>
 #include <exception>
+#include <string>
+#include <vector>
+
+namespace {
+
+// The first word that is neither an option nor an option's value, when it
+// names no command ("" otherwise). Checked before CLI11 parses, so that
+// `xgauge nonsense` and `xgauge nonsense --help` both name "nonsense" and
+// fail, where CLI11 would ask for a subcommand or print the help.
+std::string unknownCommand(const CLI::App& app, int argc, char** argv) {
+  for (int i = 1; i < argc; ++i) {
+    const std::string word = argv[i];
+    if (word.starts_with("-")) {
+      // Global options that take a value as the next word.
+      if (word == "-j" || word == "--threads" || word == "--max-image-mb") ++i;
+      continue;
+    }
+    for (const CLI::App* sub : app.get_subcommands({}))
+      if (sub->check_name(word)) return "";
+    return word;
+  }
+  return "";
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   // First: before any worker thread exists, before the work allocates.
@@ -40,6 +65,16 @@ int main(int argc, char** argv) {
                    cli::addSpcCommand, cli::addExportCommand, cli::addPartCommand})
     add(app, commands);
 
+  if (const std::string unknown = unknownCommand(app, argc, argv); !unknown.empty()) {
+    std::vector<std::string> names;
+    for (const CLI::App* sub : app.get_subcommands({})) names.push_back(sub->get_name());
+    std::string known;
+    for (const std::string& n : names) known += (known.empty() ? "" : ", ") + n;
+    const std::string nearest = xgauge::NearestName(unknown, names);
+    std::fprintf(stderr, "xgauge: error: unknown command '%s'%s\ncommands: %s\n", unknown.c_str(),
+                 nearest.empty() ? "" : ("; did you mean '" + nearest + "'?").c_str(), known.c_str());
+    return 2;
+  }
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace xgauge {
 
@@ -68,5 +69,11 @@ class RuntimeScope {
 // A message on stderr beside the library's own, in their format.
 enum class Severity { kInfo, kWarning, kError };
 void LogMessage(Severity severity, const std::string& message);
+
+// The name of `known` nearest to a misspelled `name` (a swap of neighbours
+// counting as one edit), within two edits; "" when none is that near. The
+// library's own "did you mean" for keys, offered to a caller's names
+// (commands, options).
+std::string NearestName(const std::string& name, const std::vector<std::string>& known);
 
 }  // namespace xgauge

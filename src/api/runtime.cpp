@@ -2,6 +2,7 @@
 // progress, thread pool, output cleanup and image reader limits.
 #include "xgauge/runtime.h"
 
+#include "xgauge/core/did_you_mean.h"
 #include "xgauge/core/log.h"
 #include "xgauge/core/memory.h"
 #include "xgauge/core/output.h"
@@ -52,6 +53,14 @@ void LogMessage(Severity severity, const std::string& message) {
       spdlog::error("{}", message);
       break;
   }
+}
+
+std::string NearestName(const std::string& name, const std::vector<std::string>& known) {
+  std::string nearest;
+  size_t best = 3;
+  for (const std::string& k : known)
+    if (const size_t d = editDistance(name, k); d < best) best = d, nearest = k;
+  return nearest;
 }
 
 }  // namespace xgauge

@@ -30,6 +30,7 @@ packages=(
   libpqxx-dev          # ... and PostgreSQL for several stations
   postgresql           # CTest starts a throw-away server for the PostgreSQL store's tests
   slurm-wlm            # bench/production/slurm_array.sh: a throw-away one-node Slurm runs the docs' job array
+  python3-kubernetes   # bench/production/k8s_manifest.py: the docs' Kubernetes Job against the API schema
   libgtest-dev libgmock-dev libbenchmark-dev
   pybind11-dev python3-dev   # the Python module xgauge (python/, docs/python.md)
   python3-jsonschema   # tests/validate_schemas.py: JSON files against docs/schemas

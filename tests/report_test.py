@@ -96,15 +96,16 @@ def make_reports(xgauge, source, work):
     run(xgauge, "calibrate", "part", "part_job.json", "-o", "part_cal", "--truth", "cuboid/truth.json")
     reports["calibration (part)"] = ("part_cal/report.html", "part_cal/material.json")
 
-    # Tolerances: a wide zone, a zone far from the part and one narrower than U.
+    # Tolerances: a wide zone, a zone far from the part and one narrower than U
+    # (size_y's nominal from the job's "nominals").
     write_json("measure_job.json", {
         "part": os.path.join(parts, "cuboid.json"), "machine": machine, "material": "part_cal/material.json",
         "radiographs": [dict(name="t00", image="cuboid/t00.tif", **frames),
                         dict(name="t02", image="cuboid/t02.tif", pattern="translated", reference="t00",
                              distance_mm=20.0, **frames)],
-        "pose_bounds": bounds, "unverified_verdicts": True,
+        "pose_bounds": bounds, "unverified_verdicts": True, "nominals": {"size_y": 31.0},
         "tolerances": {"size_x": {"nominal": 20.0, "lower": -1.0, "upper": 1.0},
-                       "size_y": {"nominal": 31.0, "lower": -0.05, "upper": 0.05},
+                       "size_y": {"lower": -0.05, "upper": 0.05},
                        "size_z": {"nominal": 10.0, "lower": -0.01, "upper": 0.01}}})
     run(xgauge, "measure", "measure_job.json", "-o", "measurement", "--truth", "cuboid/truth.json",
         expect=(0, 2, 3))
@@ -163,8 +164,15 @@ def check_measurement(browser, result):
         basis = text_of(browser, row + " td.basis")
         expected = ("verified" if d["verified"] else "unverified") if d["free"] else ""
         check(basis == expected, f"measurement: {d['name']} U is {basis!r}, expected {expected!r}")
+        # Deviation (the fourth cell) only from a nominal result.json states.
+        deviation = browser.evaluate(f"document.querySelector({json.dumps(row)}).children[3].textContent")
+        expected = f"{d['value_mm'] - d['nominal']:+.4f}" if "nominal" in d else "–"
+        check(deviation == expected, f"measurement: {d['name']} deviation {deviation!r}, expected {expected!r}")
         verdict = text_of(browser, row + " td.verdict")
         check(verdict == d.get("verdict", ""), f"measurement: {d['name']} verdict {verdict!r} != {d.get('verdict')!r}")
+    nominals = {d["name"]: d.get("nominal") for d in result["dimensions"]}
+    check(nominals == {"size_x": 20.0, "size_y": 31.0, "size_z": 10.0},
+          f"measurement: nominals {nominals}, the job states 20.0, 31.0 (its \"nominals\") and 10.0")
     verdicts = {d.get("verdict") for d in result["dimensions"]} - {None}
     check(len(verdicts) >= 2, f"measurement: the test job should give several verdicts, got {verdicts}")
     # One colour scale for every radiograph's residual, the colour bar's.

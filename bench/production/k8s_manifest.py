@@ -6,7 +6,7 @@ field known at its place, every value of its type, the required fields
 present. Debian 12 ships no kubeconform, and its kubectl (kubernetes-client
 1.20) validates, dry run or not, only against a running API server, which
 Debian 12 does not ship. Usage:
-  python3 bench/production/k8s_manifest.py [DOCS]
+  /usr/bin/python3 bench/production/k8s_manifest.py [DOCS]
 Needs python3-kubernetes (apt install python3-kubernetes; or its .deb
 unpacked with `dpkg -x` and PYTHONPATH pointing at its dist-packages)."""
 import importlib.util

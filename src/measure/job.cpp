@@ -166,6 +166,26 @@ std::vector<bool> readDimensions(const ConfigNode& root, const PartModel& model,
 // Tolerances, of measured dimensions only (a fixed one has no measured
 // value to judge). As in a part model, a zone that misses the model's
 // [min, max] entirely is a slip, not a specification.
+// "nominals": the nominal values of this part number, per free dimension
+// (a drawing's, where the part model's defaults are another part's): what a
+// report's deviations are taken from, and a job tolerance's default nominal.
+void readNominals(const ConfigNode& root, const PartModel& model, const std::vector<bool>& is_free,
+                  MeasurementJob& job) {
+  auto nominals = root.find("nominals");
+  if (!nominals) return;
+  if (!nominals->isObject()) nominals->fail("expected {dimension: nominal value}");
+  for (const auto& name : nominals->keys()) {
+    const ConfigNode node = nominals->at(name);
+    const auto index = static_cast<size_t>(knownDimension(model, node, name));
+    if (!is_free[index])
+      node.fail(fmt::format("'{}' is not a free dimension of this job: a nominal applies to "
+                            "measured dimensions only",
+                            name));
+    const Dimension& d = model.dimensions()[index];
+    job.nominals[name] = node.number(d.min, d.max);
+  }
+}
+
 void readTolerances(const ConfigNode& root, const PartModel& model,
                     const std::vector<bool>& is_free, MeasurementJob& job) {
   auto tolerances = root.find("tolerances");
@@ -179,7 +199,9 @@ void readTolerances(const ConfigNode& root, const PartModel& model,
                       "dimensions only",
                       name));
     const Dimension& d = model.dimensions()[index];
-    Tolerance tolerance{node.get<double>("nominal", d.nominal), node.get<double>("lower"),
+    const auto stated = job.nominals.find(name);
+    const double nominal = stated != job.nominals.end() ? stated->second : d.nominal;
+    Tolerance tolerance{node.get<double>("nominal", nominal), node.get<double>("lower"),
                         node.get<double>("upper"), "job"};
     if (!(tolerance.lower < tolerance.upper))
       node.fail(
@@ -328,6 +350,7 @@ MeasurementJob MeasurementJob::fromConfig(const ConfigNode& root, const std::fil
   if (needs_material || root.has("material"))
     job.material_file = folder / root.get<std::string>("material");
   const std::vector<bool> is_free = readDimensions(root, model, job);
+  readNominals(root, model, is_free, job);
   readTolerances(root, model, is_free, job);
   if (auto scatter = root.find("scatter")) job.scatter = ScatterModel::fromConfig(*scatter);
 

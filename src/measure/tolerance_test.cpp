@@ -9,6 +9,8 @@
 
 #include <gtest/gtest.h>
 
+#include <map>
+
 #include <cmath>
 #include <limits>
 #include <ostream>
@@ -275,6 +277,37 @@ TEST_F(JobTolerances, BadTolerancesNameTheFileKeyAndLine) {
               "the tolerance zone [1.9, 2.1] mm lies outside the part model's [min, max] = [10, "
               "30]",
               "/tolerances/size_x", 7);
+}
+
+// "nominals": this part number's nominal values, a job tolerance's default
+// nominal; the part model's stays the default of the rest.
+TEST_F(JobTolerances, TheJobsNominalsAreItsTolerancesDefaults) {
+  std::string text = boxJob("", R"({"size_y": {"lower": -0.25, "upper": 0.125},
+    "size_z": {"nominal": 12.5, "lower": -0.5, "upper": 0.5}})");
+  text.insert(text.find("\"tolerances\""), "\"nominals\": {\"size_y\": 31.5, \"size_z\": 11},\n  ");
+  const MeasurementJob job = read(text);
+  EXPECT_EQ(job.nominals, (std::map<std::string, double>{{"size_y", 31.5}, {"size_z", 11.0}}));
+  EXPECT_EQ(job.tolerances.at("size_y").nominal, 31.5);  // the job's nominal
+  EXPECT_EQ(job.tolerances.at("size_z").nominal, 12.5);  // the tolerance's own wins
+  EXPECT_EQ(tolerancesFor(job, part_).at("size_x").nominal, 20.0);  // the part model's
+}
+
+TEST_F(JobTolerances, BadNominalsNameTheFileKeyAndLine) {
+  const auto with = [](const std::string& dimensions, const std::string& nominals) {
+    std::string text = boxJob(dimensions, "");
+    text.insert(text.find("\"radiographs\""), "\"nominals\": " + nominals + ",\n  ");
+    return text;
+  };
+  expectError(with("", "{\"size_w\": 20}"),
+              "unknown dimension 'size_w' of part 'part' (known: size_x, size_y, size_z)",
+              "/nominals/size_w", 6);
+  expectError(with(R"({"fixed": {"size_y": 30}})", "{\"size_y\": 30}"),
+              "'size_y' is not a free dimension of this job: a nominal applies to measured "
+              "dimensions only",
+              "/nominals/size_y", 6);
+  expectError(with("", "{\"size_x\": 2}"), "value 2 out of range [10, 30]", "/nominals/size_x",
+              6);
+  expectError(with("", "[20]"), "expected {dimension: nominal value}", "/nominals", 6);
 }
 
 TEST_F(JobTolerances, ANonFiniteToleranceIsRefused) {

@@ -42,6 +42,12 @@ nlohmann::json dimensionJson(const ForwardModel& model, const MeasuredDimension&
         d.expanded_uncertainty ? nlohmann::json(*d.expanded_uncertainty) : nlohmann::json(nullptr);
     item["identifiable"] = d.expanded_uncertainty.has_value();
   }
+  // The nominal this part number has: the job's, or its tolerance's (the
+  // job's or the part drawing's); none when nobody stated one.
+  if (const auto it = model.job().nominals.find(d.name); it != model.job().nominals.end())
+    item["nominal"] = it->second;
+  else if (d.tolerance)
+    item["nominal"] = d.tolerance->nominal;
   if (d.tolerance)
     item["tolerance"] = {{"nominal", d.tolerance->nominal},
                          {"lower", d.tolerance->lower},

@@ -42,9 +42,12 @@
 //                      bounding-box centre; angles in degrees, R = Rz Ry Rx):
 //                      {"rotation_deg": [[rx0, rx1], [ry0, ry1], [rz0, rz1]],
 //                       "centre_mm": [[x0, x1], [y0, y1], [z0, z1]]}
-//   tolerances         optional {name: {"nominal" (optional, default the part model's),
-//                      "lower", "upper"}}: tolerances of free dimensions, replacing the
-//                      part model's defaults (measure/tolerance.h)
+//   nominals           optional {name: value}: this part number's nominal values of free
+//                      dimensions: the report's deviations are taken from them (or from a
+//                      tolerance's nominal), never from the part model's defaults
+//   tolerances         optional {name: {"nominal" (optional, default the job's "nominals",
+//                      else the part model's), "lower", "upper"}}: tolerances of free
+//                      dimensions, replacing the part model's defaults (measure/tolerance.h)
 //   schedule           optional, "default", "bobyqa", "gauss-newton" or "thesis"
 //                      (measure/schedule.h)
 //   loss               optional, "l1" (thesis eq. 3.13, default) or "l2"
@@ -130,6 +133,8 @@ struct MeasurementJob {
   // The job's own tolerances of free dimensions, source "job"; tolerancesFor()
   // adds the part model's defaults.
   std::map<std::string, Tolerance> tolerances;
+  // The job's stated nominal values ("nominals"), per free dimension.
+  std::map<std::string, double> nominals;
   ScheduleKind schedule = ScheduleKind::kDefault;
   LossKind loss = LossKind::kMeanAbsolute;
   MaterialRefinement refine_material = MaterialRefinement::kNone;

@@ -6,17 +6,20 @@
 // line ("Kxxxx/i value", i the characteristic; CRLF line ends):
 //   K0100            number of characteristics
 //   K1001, K1002     part number (the part model's name) and description
-//   K1086            the lot (work cycle / operation, free text)
+//                    (default: the part number and lot)
 //   per characteristic i (each free dimension, in the part model's order):
 //   K2001/i, K2002/i number (the dimension's name) and description
-//   K2022/i          decimal places (6)
+//   K2022/i          decimal places: the fewest whose last digit is at most
+//                    U/10 (the lot's smallest U), raised to what the plan's
+//                    nominal and limits need; 6 without a U
 //   K2101/i          nominal; K2110/i, K2111/i lower and upper specification
 //                    limits (when toleranced); K2142/i unit
-//   per measured part, per characteristic: K0001/i the value (shortest
-//   form that reads back to the same double), K0004/i the part's
-//   acquisition time as DD.MM.YYYY/HH:MM:SS (UTC), K0006/i the lot (batch),
-//   K0014/i the part id. A K0001/i line starts a new value of
-//   characteristic i; the K00xx/i lines after it belong to it.
+//   per measured part, per characteristic: K0001/i the value (with K2022's
+//   decimals), K0004/i the part's acquisition time as DD.MM.YYYY/HH:MM:SS
+//   (UTC), K0006/i the lot (batch number, at most 14 characters), K0014/i
+//   the part id. A K0001/i line starts a new value of characteristic i; the
+//   K00xx/i lines after it belong to it. A field longer than AQDEF allows
+//   is refused, nothing written.
 // Parts "not measured" have no values and are left out.
 #pragma once
 

@@ -196,8 +196,6 @@
     const result = data.result;
     const ctx = data.context || {};
     const part = ctx.part || {};
-    const nominal = {};
-    for (const d of part.dimensions || []) nominal[d.name] = d;
     const truth = data.truth || null;
 
     root.append(el('h1', {}, 'Measurement of ' + basename(part.file || 'the part')));
@@ -258,7 +256,9 @@
     if (truth) headers.push('True', 'Error');
     headers.push('Notes');
     const rows = dimensions.map((d) => {
-      const nom = d.tolerance ? d.tolerance.nominal : (nominal[d.name] || {}).nominal;
+      // Deviations only from a nominal the job or its tolerance states; the
+      // part model's default is another part number's start value.
+      const nom = isNum(d.nominal) ? d.nominal : d.tolerance ? d.tolerance.nominal : undefined;
       const unit = d.unit === 'deg' ? '°' : '';
       const cells = [
         el('td', {}, d.name + (d.free ? '' : ' (fixed)')),
@@ -287,7 +287,8 @@
       el('p', { class: 'note' }, 'Values in mm (° for angles). U is the expanded uncertainty with coverage factor 2 ' +
         '(about 95 %): verified, by substitution on a calibrated master of this part type (ISO 15530-3), the value ' +
         'corrected by the method\'s bias found there; unverified, from the model\'s budget below alone, which no ' +
-        'measurement of a known part has checked. Deviation = measured − nominal.')));
+        'measurement of a known part has checked. Deviation = measured − nominal, where the job or a tolerance ' +
+        'states the nominal.')));
 
     const u = (measured ? result.uncertainty : result.rejected_uncertainty) || {};
     if ((u.combinations || []).length) {

@@ -66,7 +66,8 @@ void addSpcCommand(CLI::App& app, Commands& commands) {
   cmd->add_option("--lot", options->lots, "Only these lots (default: every lot)");
   cmd->add_option("-o,--output", *output, "Folder for the pages: <output>/<lot>/<dimension>.html")
       ->required();
-  cmd->add_option("--baseline", options->baseline, "Phase I: the first N parts of each lot")
+  cmd->add_option("--baseline", options->baseline,
+                  "Phase I: the first N parts of each lot (a lot with fewer is refused)")
       ->check(CLI::Range(size_t{2}, size_t{1000000}))
       ->capture_default_str();
   cmd->add_option("--baseline-lot", options->baseline_lot,

@@ -44,12 +44,15 @@ struct InspectionSummary {
 
 InspectionSummary inspect(const InspectionOptions& options);
 
-// Control charts, Nelson rules and capability per lot and dimension.
+// Control charts, Nelson rules and capability per lot and dimension. Each
+// lot's alarms in the store become this analysis's, replacing the earlier
+// one's.
 struct ProcessControlOptions {
   std::string store;                    // SQLite file or postgresql:// URL
   std::vector<std::string> lots;        // empty: every lot
   std::filesystem::path output_folder;  // <output>/<lot>/<dimension>.html, spc.json
-  std::size_t baseline = 30;            // phase I: the first N parts of each lot
+  std::size_t baseline = 30;            // phase I: the first N parts of each lot; a lot
+                                        // (dimension) with fewer measured parts is refused
   std::string baseline_lot;             // or every part of this lot
   std::vector<int> rules;               // 1..8, 9 the moving range; empty: all
   LineCallback on_alarm;                // each alarm, after the pages are written
@@ -59,7 +62,7 @@ struct ProcessControlSummary {
   RunTermination termination = RunTermination::kFailure;
   std::string message;  // kFailure: why
   std::size_t pages = 0, alarms = 0;
-  int new_alarms = 0;  // not in the store before
+  int new_alarms = 0;  // not among the lot's alarms before (its previous analysis's)
 };
 
 ProcessControlSummary processControl(const ProcessControlOptions& options);

@@ -52,6 +52,11 @@ def test_bad_inputs_raise_xgauge_error():
                "detector": {"columns": 128, "rows": 128, "pixel_pitch_mm": [0.5, 0.5],
                             "widht": 3}}
         xgauge.render(CUBOID, None, ((0, 0, 0), (0, 0, 400)), bad, MATERIAL)
+    # A required key misspelled: the unknown key is named, not the missing one.
+    with pytest.raises(xgauge.Error, match="unknown key 'detektor'; did you mean 'detector'"):
+        bad = {"source_detector_distance_mm": 1000,
+               "detektor": {"columns": 128, "rows": 128, "pixel_pitch_mm": [0.5, 0.5]}}
+        xgauge.render(CUBOID, None, ((0, 0, 0), (0, 0, 400)), bad, MATERIAL)
 
 
 def test_derivatives_are_views_in_model_order():

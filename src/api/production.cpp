@@ -81,7 +81,7 @@ ProcessControlSummary processControlOrThrow(const ProcessControlOptions& options
     writeFileAtomically(options.output_folder / lot / "spc.json", json.dump(1) + "\n");
   outputs.commit();
   ProcessControlSummary summary;
-  summary.new_alarms = store->addAlarms(alarms);
+  summary.new_alarms = store->recordAnalysis(lots, alarms, now);  // replaces the lots' alarms
   if (options.on_alarm)
     for (const auto& a : alarms) options.on_alarm(alarmLine(a));
   spdlog::info("spc: {} page(s) in {}; {} alarm(s), {} new in the store", analyses.size(),

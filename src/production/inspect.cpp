@@ -293,20 +293,20 @@ class Inspector {
     return Outcome::kMeasured;
   }
 
-  // SPC after each part: the alarms the store did not have yet.
+  // SPC after each part, once phase I is complete: the lot's analysis
+  // replaces its alarms in the store; the alarms it did not have yet are
+  // printed.
   void watchProcess(const std::string& lot) {
     SpcOptions spc;
     spc.baseline_parts = options_.spc_baseline;
-    std::set<std::string> known;
-    for (const auto& a : store_->alarms(lot))
-      known.insert(a.dimension + "|" + a.rule + "|" + a.part);
-    std::vector<StoredAlarm> fresh;
-    for (const auto& analysis : analyseLot(*store_, lot, spc)) {
-      if (analysis.values.size() < options_.spc_baseline) continue;  // phase I not complete
-      for (auto& a : alarmsOf(analysis, utcTimestamp()))
-        if (!known.count(a.dimension + "|" + a.rule + "|" + a.part)) fresh.push_back(std::move(a));
-    }
-    store_->addAlarms(fresh);
+    spc.skip_short_baseline = true;  // phase I not complete: no analysis yet
+    const std::vector<DimensionSpc> analyses = analyseLot(*store_, lot, spc);
+    if (analyses.empty()) return;
+    const std::string now = utcTimestamp();
+    std::vector<StoredAlarm> alarms, fresh;
+    for (const auto& analysis : analyses)
+      for (auto& a : alarmsOf(analysis, now)) alarms.push_back(std::move(a));
+    store_->recordAnalysis({lot}, alarms, now, &fresh);
     for (const auto& a : fresh) line_(alarmLine(a));
   }
 

@@ -177,6 +177,60 @@ Capability capability(const std::vector<double>& baseline, double lsl, double us
   return c;
 }
 
+double quantile(std::vector<double> values, double q) {
+  XG_CHECK(!values.empty() && q >= 0.0 && q <= 1.0, "n = {}, q = {}", values.size(), q);
+  std::sort(values.begin(), values.end());
+  const double at = q * static_cast<double>(values.size() - 1);
+  const size_t below = static_cast<size_t>(std::floor(at));
+  if (below + 1 >= values.size()) return values.back();
+  return values[below] + (at - static_cast<double>(below)) * (values[below + 1] - values[below]);
+}
+
+HistogramBins histogramBins(const std::vector<double>& values) {
+  XG_CHECK(!values.empty());
+  const auto [lo_it, hi_it] = std::minmax_element(values.begin(), values.end());
+  const double lo = *lo_it, hi = *hi_it, range = hi - lo;
+  const double n = static_cast<double>(values.size());
+  HistogramBins h;
+  const double iqr = quantile(values, 0.75) - quantile(values, 0.25);
+  double s = 0.0;
+  if (values.size() > 1) {
+    const double m = mean(values);
+    for (double v : values) s += (v - m) * (v - m);
+    s = std::sqrt(s / (n - 1.0));
+  }
+  if (range > 0.0 && iqr > 0.0) {
+    h.rule = "freedman-diaconis";
+    h.width = 2.0 * iqr / std::cbrt(n);
+  } else if (range > 0.0 && s > 0.0) {
+    h.rule = "scott";
+    h.width = 3.49 * s / std::cbrt(n);
+  } else {
+    // Every value the same: one bin around it, as wide as a part in a
+    // million of the value (or 1e-6 at zero), so that the bar has a width.
+    h.rule = "single";
+    h.width = std::max(1e-6, 1e-6 * std::abs(lo));
+    h.count = 1;
+    h.start = lo - h.width / 2;
+    h.counts = {values.size()};
+    return h;
+  }
+  const double bins = std::max(1.0, std::ceil(range / h.width));
+  if (bins > static_cast<double>(kMaxHistogramBins)) {
+    h.count = kMaxHistogramBins;
+    h.width = range / static_cast<double>(kMaxHistogramBins);
+  } else {
+    h.count = static_cast<size_t>(bins);
+  }
+  h.start = lo - (static_cast<double>(h.count) * h.width - range) / 2.0;
+  h.counts.assign(h.count, 0);
+  for (double v : values) {
+    const double at = std::floor((v - h.start) / h.width);
+    ++h.counts[static_cast<size_t>(std::clamp(at, 0.0, static_cast<double>(h.count - 1)))];
+  }
+  return h;
+}
+
 double normalQuantile(double p) {
   XG_CHECK(p > 0.0 && p < 1.0, "p = {}", p);
   return boost::math::quantile(boost::math::normal(), p);

@@ -50,23 +50,15 @@ nlohmann::json intervalJson(const Interval& i) {
   return {{"value", i.value}, {"low", i.low}, {"high", i.high}};
 }
 
-// Histogram bins over the values and the specification limits, about
-// sqrt(n) of them (5 .. 40).
+// The histogram of the lot's values, bins by a rule on the data
+// (histogramBins: Freedman-Diaconis, else Scott); the page draws the
+// tolerance limits over it as lines, and its x range takes them in.
 nlohmann::json histogram(const DimensionSpc& s) {
-  double lo = *std::min_element(s.values.begin(), s.values.end());
-  double hi = *std::max_element(s.values.begin(), s.values.end());
-  if (s.lsl) lo = std::min(lo, *s.lsl);
-  if (s.usl) hi = std::max(hi, *s.usl);
-  if (hi <= lo) hi = lo + 1e-6;
-  const size_t bins =
-      std::clamp<size_t>(static_cast<size_t>(std::ceil(std::sqrt(double(s.values.size())))), 5, 40);
-  const double width = (hi - lo) / static_cast<double>(bins);
-  std::vector<double> centres(bins);
-  std::vector<int> counts(bins, 0);
-  for (size_t b = 0; b < bins; ++b) centres[b] = lo + (static_cast<double>(b) + 0.5) * width;
-  for (double v : s.values)
-    ++counts[std::min(bins - 1, static_cast<size_t>(std::max(0.0, (v - lo) / width)))];
-  return {{"centres", centres}, {"counts", counts}, {"width", width}};
+  const HistogramBins h = histogramBins(s.values);
+  std::vector<double> centres(h.count);
+  for (size_t b = 0; b < h.count; ++b) centres[b] = h.centre(b);
+  return {{"centres", centres}, {"counts", h.counts}, {"width", h.width},
+          {"start", h.start},   {"bins", h.count},    {"rule", h.rule}};
 }
 
 }  // namespace
@@ -157,7 +149,21 @@ std::vector<DimensionSpc> analyseLot(ResultStore& store, const std::string& lot,
       phase1_u = found->second.u;
       d.baseline = "lot " + options.baseline_lot;
     } else {
-      const size_t n = std::min(options.baseline_parts, s.values.size());
+      // A lot shorter than the baseline asked for: phase I would be every
+      // part, drift included, and the limits would hide the drift. Refused,
+      // unless the caller skips such dimensions (inspect --spc: phase I not
+      // complete yet); a smaller --baseline, at most the parts present, is
+      // the explicit choice of a shorter phase I.
+      if (s.values.size() < options.baseline_parts) {
+        if (options.skip_short_baseline) continue;
+        fail(
+            "{}: lot {} has {} measured part(s) with a value of {}, fewer than the {} of the "
+            "phase-I baseline asked for: limits from every part would take in any drift. Give "
+            "--baseline N with N at most {} to take the first N parts as phase I, or "
+            "--baseline-lot LOT",
+            store.where(), lot, s.values.size(), name, options.baseline_parts, s.values.size());
+      }
+      const size_t n = options.baseline_parts;
       phase1.assign(s.values.begin(), s.values.begin() + static_cast<long>(n));
       phase1_u.assign(s.u.begin(), s.u.begin() + static_cast<long>(n));
       d.baseline = fmt::format("first {} parts", n);

@@ -3,12 +3,16 @@
 #include "xgauge/production/spc.h"
 
 #include "xgauge/core/error.h"
+#include "xgauge/production/spc_report.h"
+#include "xgauge/production/store.h"
 
+#include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
-
+#include <filesystem>
 #include <random>
 
 namespace xgauge {
@@ -220,6 +224,163 @@ TEST(Spc, CapabilityIntervalsCoverTheTrueValue) {
   }
   EXPECT_NEAR(cover_cp / double(trials), 0.95, 0.035);
   EXPECT_NEAR(cover_cpk / double(trials), 0.95, 0.035);
+}
+
+// Histogram bins by the rule, on data whose bins are worked out by hand.
+TEST(SpcHistogram, FreedmanDiaconisOnKnownData) {
+  // 0 .. 9: quartiles 2.25 and 6.75 (linear interpolation), IQR 4.5, width
+  // 2 * 4.5 / 10^(1/3) = 4.1774; range 9 / 4.1774 = 2.15: 3 bins, centred on
+  // the range (start -1.766, edges 2.411 and 6.588).
+  std::vector<double> x;
+  for (int i = 9; i >= 0; --i) x.push_back(i);  // order does not matter
+  EXPECT_DOUBLE_EQ(quantile(x, 0.25), 2.25);
+  EXPECT_DOUBLE_EQ(quantile(x, 0.75), 6.75);
+  const HistogramBins h = histogramBins(x);
+  EXPECT_EQ(h.rule, "freedman-diaconis");
+  EXPECT_NEAR(h.width, 9.0 / std::cbrt(10.0), 1e-12);
+  EXPECT_EQ(h.count, 3u);
+  EXPECT_NEAR(h.start, -(3.0 * 9.0 / std::cbrt(10.0) - 9.0) / 2.0, 1e-12);
+  EXPECT_EQ(h.counts, (std::vector<size_t>{3, 4, 3}));
+}
+
+TEST(SpcHistogram, ScottWhenTheIqrIsZeroOneBinWhenEveryValueIsTheSame) {
+  // Seven 5s of nine: IQR 0. Mean 5, s = sqrt(32 / 8) = 2, width
+  // 3.49 * 2 / 9^(1/3) = 3.3557; range 8 / 3.3557 = 2.38: 3 bins.
+  const std::vector<double> x = {1, 5, 5, 5, 5, 5, 5, 5, 9};
+  const HistogramBins h = histogramBins(x);
+  EXPECT_EQ(h.rule, "scott");
+  EXPECT_NEAR(h.width, 6.98 / std::cbrt(9.0), 1e-12);
+  EXPECT_EQ(h.count, 3u);
+  EXPECT_EQ(h.counts, (std::vector<size_t>{1, 7, 1}));
+  const HistogramBins one = histogramBins({20.5, 20.5, 20.5});
+  EXPECT_EQ(one.rule, "single");
+  EXPECT_EQ(one.count, 1u);
+  EXPECT_EQ(one.counts, std::vector<size_t>{3});
+  EXPECT_NEAR(one.centre(0), 20.5, 1e-12);
+}
+
+TEST(SpcHistogram, AFarOutlierCapsTheBinsAndEveryValueIsCounted) {
+  std::vector<double> x;
+  for (int i = 0; i < 10; ++i) x.push_back(i);
+  x.push_back(1e6);
+  const HistogramBins h = histogramBins(x);
+  EXPECT_EQ(h.count, kMaxHistogramBins);
+  EXPECT_NEAR(h.width, 1e6 / static_cast<double>(kMaxHistogramBins), 1e-6);
+  EXPECT_EQ(h.counts.front(), 10u);
+  EXPECT_EQ(h.counts.back(), 1u);
+}
+
+// The lot: 24 parts, s 0.01 mm, tolerance +-0.1 mm. Bins of a fifth
+// of the tolerance put 17 to 22 parts in one bar; the rule's bins, on the
+// data, spread them.
+TEST(SpcHistogram, TwentyFourPartsInATolerancesFifthAreSpread) {
+  std::mt19937_64 rng(61);
+  std::normal_distribution<double> noise(20.0, 0.01);
+  std::vector<double> x(24);
+  for (double& v : x) v = noise(rng);
+  const HistogramBins h = histogramBins(x);
+  std::vector<double> sorted = x;
+  std::sort(sorted.begin(), sorted.end());
+  // The quartiles at (n - 1) q = 5.75 and 17.25 between order statistics.
+  const double iqr = (sorted[17] + 0.25 * (sorted[18] - sorted[17])) -
+                     (sorted[5] + 0.75 * (sorted[6] - sorted[5]));
+  const double width = 2.0 * iqr / std::cbrt(24.0);
+  EXPECT_NEAR(h.width, width, 1e-12);
+  EXPECT_EQ(h.count, static_cast<size_t>(std::ceil((sorted.back() - sorted.front()) / width)));
+  EXPECT_GE(h.count, 4u);
+  EXPECT_LT(*std::max_element(h.counts.begin(), h.counts.end()), 12u);
+  size_t total = 0;
+  for (size_t c : h.counts) total += c;
+  EXPECT_EQ(total, 24u);
+}
+
+// A lot of `n` parts in a fresh SQLite store: width drifting from part 16.
+class SpcLotTest : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    dir_ = std::filesystem::temp_directory_path() /
+           fmt::format("xgauge_spc_{}_{}", ::getpid(),
+                       ::testing::UnitTest::GetInstance()->current_test_info()->name());
+    std::filesystem::remove_all(dir_);
+    std::filesystem::create_directories(dir_);
+    store_ = ResultStore::open((dir_ / "lot.sqlite").string());
+  }
+  void TearDown() override {
+    store_.reset();
+    std::filesystem::remove_all(dir_);
+  }
+  void addParts(size_t n) {
+    for (size_t i = 0; i < n; ++i) {
+      MeasurementRecord r;
+      r.lot = "L1";
+      r.part = fmt::format("p{:04d}", i + 1);
+      r.part_index = static_cast<int64_t>(i);
+      r.acquired_at = "2026-12-04T10:00:00Z";
+      r.inputs_digest = r.part;
+      r.status = "measured";
+      StoredDimension d;
+      d.name = "width";
+      d.value = 20.0 + 0.004 * ((i * 7) % 5) + (i >= 16 ? 0.01 * static_cast<double>(i - 15) : 0.0);
+      d.unit = "mm";
+      d.expanded_uncertainty = 0.004;
+      d.nominal = 20.0, d.lower_limit = 19.9, d.upper_limit = 20.1;
+      r.dimensions.push_back(d);
+      const Claim c = store_->claim(r, Claimant::thisProcess("s1", 900.0));
+      ASSERT_TRUE(store_->record(r, c.token));
+    }
+  }
+  std::filesystem::path dir_;
+  std::unique_ptr<ResultStore> store_;
+};
+
+TEST_F(SpcLotTest, ALotShorterThanTheBaselineIsRefusedNamingLotPartsAndBaseline) {
+  addParts(24);
+  SpcOptions options;  // the default baseline, 30
+  try {
+    analyseLot(*store_, "L1", options);
+    FAIL() << "a 24-part lot was analysed against a 30-part baseline";
+  } catch (const Error& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("lot L1 has 24 measured part(s)"), std::string::npos) << m;
+    EXPECT_NE(m.find("the 30 of the phase-I baseline"), std::string::npos) << m;
+    EXPECT_NE(m.find("--baseline N with N at most 24"), std::string::npos) << m;
+  }
+  options.baseline_parts = 25;  // given, but still more than the parts
+  EXPECT_THROW(analyseLot(*store_, "L1", options), Error);
+  // inspect --spc: phase I not complete yet, no analysis.
+  options.skip_short_baseline = true;
+  EXPECT_TRUE(analyseLot(*store_, "L1", options).empty());
+}
+
+TEST_F(SpcLotTest, AnExplicitBaselineAtMostThePartsIsTakenAndTheDriftCaught) {
+  addParts(24);
+  SpcOptions options;
+  options.baseline_parts = 16;
+  const auto analyses = analyseLot(*store_, "L1", options);
+  ASSERT_EQ(analyses.size(), 1u);
+  const DimensionSpc& d = analyses[0];
+  EXPECT_EQ(d.limits.baseline_n, 16u);
+  EXPECT_EQ(d.baseline, "first 16 parts");
+  EXPECT_EQ(d.values.size(), 24u);
+  // The drift beyond 3 sigma, not phase I (whose repeating pattern stays
+  // within 1 sigma: nelson-7 at part 15).
+  const auto beyond = std::find_if(d.hits.begin(), d.hits.end(), [](const RuleHit& h) {
+    return h.rule == SpcRule::kBeyond3Sigma;
+  });
+  ASSERT_NE(beyond, d.hits.end());
+  EXPECT_GE(beyond->index, 16u);
+  EXPECT_LE(beyond->index, 20u);
+  // The same lot with every part as phase I (what a short lot used to get)
+  // widens the limits by the drift.
+  options.baseline_parts = 24;
+  EXPECT_GT(analyseLot(*store_, "L1", options)[0].limits.sigma_within, d.limits.sigma_within);
+  // The histogram of spc.json: the rule's bins.
+  const auto json = d.toJson().at("histogram");
+  const HistogramBins h = histogramBins(d.values);
+  EXPECT_EQ(json.at("rule"), h.rule);
+  EXPECT_EQ(json.at("bins").get<size_t>(), h.count);
+  EXPECT_EQ(json.at("counts").size(), h.count);
+  EXPECT_EQ(json.at("centres").size(), h.count);
 }
 
 }  // namespace

@@ -9,10 +9,12 @@
 #include <signal.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <map>
 #include <random>
+#include <set>
 
 namespace xgauge {
 
@@ -58,6 +60,15 @@ CREATE TABLE alarms (id {id}, lot_id BIGINT NOT NULL REFERENCES lots(id),
   dimension TEXT NOT NULL, rule TEXT NOT NULL, chart TEXT NOT NULL, part TEXT NOT NULL,
   position BIGINT NOT NULL, value DOUBLE PRECISION NOT NULL, detail TEXT NOT NULL,
   raised_at TEXT NOT NULL, UNIQUE (lot_id, dimension, rule, part));
+)sql",
+      // 3: SPC alarms per analysis: a lot's current analysis (one row per
+      // lot, its time), and each alarm's analysis. Re-running the analysis
+      // replaces the lot's alarms with its own; alarms stored before this
+      // version have no analysis until then.
+      R"sql(
+CREATE TABLE spc_analyses (id {id}, lot_id BIGINT NOT NULL UNIQUE REFERENCES lots(id),
+  analysed_at TEXT NOT NULL);
+ALTER TABLE alarms ADD COLUMN analysis_id BIGINT REFERENCES spc_analyses(id);
 )sql",
   };
   return steps;
@@ -388,20 +399,55 @@ int64_t ResultStore::measurementCount(const std::string& lot) {
       .integer(0);
 }
 
-int ResultStore::addAlarms(const std::vector<StoredAlarm>& alarms) {
+int ResultStore::recordAnalysis(const std::vector<std::string>& lots,
+                                const std::vector<StoredAlarm>& alarms,
+                                const std::string& analysed_at, std::vector<StoredAlarm>* fresh) {
   sql::Connection& c = *connection_;
+  const auto key = [](const std::string& dimension, const std::string& rule,
+                      const std::string& part) { return dimension + '\n' + rule + '\n' + part; };
+  for (const auto& a : alarms)
+    if (std::find(lots.begin(), lots.end(), a.lot) == lots.end())
+      fail("{}: an alarm of lot '{}', which the analysis does not cover", c.where(), a.lot);
   sql::Transaction t(c);
   int added = 0;
-  for (const auto& a : alarms) {
-    const int64_t lot = lotId(a.lot, true);
-    added += static_cast<int>(c.execute(
-        "INSERT INTO alarms (lot_id, dimension, rule, chart, part, position, value, detail, "
-        "raised_at) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9) ON CONFLICT (lot_id, dimension, "
-        "rule, part) DO NOTHING",
-        {lot, a.dimension, a.rule, a.chart, a.part, a.position, a.value, a.detail, a.raised_at}));
+  for (const auto& lot : lots) {
+    const int64_t lot_id = lotId(lot, true);
+    // The analysis row first: on PostgreSQL its row lock orders two
+    // stations re-analysing one lot, so each replaces the other's alarms
+    // whole rather than interleaving with them.
+    const int64_t analysis = c.query(
+                                  "INSERT INTO spc_analyses (lot_id, analysed_at) VALUES (?1, ?2) "
+                                  "ON CONFLICT (lot_id) DO UPDATE SET analysed_at = "
+                                  "excluded.analysed_at RETURNING id",
+                                  {lot_id, analysed_at})[0]
+                                 .integer(0);
+    std::set<std::string> before;
+    for (const auto& r :
+         c.query("SELECT dimension, rule, part FROM alarms WHERE lot_id = ?1", {lot_id}))
+      before.insert(key(r.text(0), r.text(1), r.text(2)));
+    c.execute("DELETE FROM alarms WHERE lot_id = ?1", {lot_id});
+    for (const auto& a : alarms) {
+      if (a.lot != lot) continue;
+      if (c.execute("INSERT INTO alarms (lot_id, dimension, rule, chart, part, position, value, "
+                    "detail, raised_at, analysis_id) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, "
+                    "?10) ON CONFLICT (lot_id, dimension, rule, part) DO NOTHING",
+                    {lot_id, a.dimension, a.rule, a.chart, a.part, a.position, a.value, a.detail,
+                     a.raised_at, analysis}) == 1 &&
+          !before.count(key(a.dimension, a.rule, a.part))) {
+        ++added;
+        if (fresh) fresh->push_back(a);
+      }
+    }
   }
   t.commit();
   return added;
+}
+
+std::optional<std::string> ResultStore::analysedAt(const std::string& lot) {
+  const auto rows = connection_->query(
+      "SELECT s.analysed_at FROM spc_analyses s JOIN lots l ON s.lot_id = l.id WHERE l.name = ?1",
+      {lot});
+  return rows.empty() ? std::nullopt : std::optional<std::string>(rows[0].text(0));
 }
 
 std::vector<StoredAlarm> ResultStore::alarms(const std::string& lot) {

@@ -173,13 +173,94 @@ TEST_P(StoreTest, ASeriesReadsBackEveryFieldExactlyInProductionOrder) {
   EXPECT_THROW(store->lotSeries("no such lot"), Error);
 }
 
-TEST_P(StoreTest, AlarmsAreStoredOnce) {
+inline StoredAlarm alarm(const std::string& lot, const std::string& rule, const std::string& part,
+                         int64_t position, const std::string& raised_at) {
+  return {lot, "width", rule, part, "individuals", position, 21.01, "a pattern", raised_at};
+}
+
+inline std::vector<std::string> alarmKeys(ResultStore& store, const std::string& lot) {
+  std::vector<std::string> out;
+  for (const auto& a : store.alarms(lot)) out.push_back(a.rule + " " + a.part + " " + a.raised_at);
+  return out;
+}
+
+TEST_P(StoreTest, AnAlarmIsStoredOncePerAnalysis) {
   auto store = ResultStore::open(file());
-  StoredAlarm a{"L1", "width", "nelson-2", "p0010", "individuals", 10, 21.01, "9 above", "t"};
-  EXPECT_EQ(store->addAlarms({a, a}), 1);
-  EXPECT_EQ(store->addAlarms({a}), 0);
+  const StoredAlarm a = alarm("L1", "nelson-2", "p0010", 10, "t1");
+  EXPECT_EQ(store->recordAnalysis({"L1"}, {a, a}, "t1"), 1);
   ASSERT_EQ(store->alarms("L1").size(), 1u);
   EXPECT_EQ(store->alarms("L1")[0].part, "p0010");
+  EXPECT_EQ(store->analysedAt("L1"), "t1");
+}
+
+// The case: a re-run raised 2 alarms and the store showed 6. Each
+// analysis replaces the lot's alarms with its own; the count of new ones is
+// against the analysis before; other lots keep theirs.
+TEST_P(StoreTest, ReRunningAnAnalysisLeavesOnlyItsOwnAlarms) {
+  auto store = ResultStore::open(file());
+  EXPECT_FALSE(store->analysedAt("L1").has_value());
+  std::vector<StoredAlarm> fresh;
+  EXPECT_EQ(store->recordAnalysis({"L1", "L2"},
+                                  {alarm("L1", "nelson-2", "p0010", 10, "t1"),
+                                   alarm("L1", "nelson-1", "p0012", 12, "t1"),
+                                   alarm("L2", "nelson-1", "p0003", 3, "t1")},
+                                  "t1", &fresh),
+            3);
+  EXPECT_EQ(fresh.size(), 3u);
+  EXPECT_EQ(alarmKeys(*store, "L1"),
+            (std::vector<std::string>{"nelson-2 p0010 t1", "nelson-1 p0012 t1"}));
+  // Re-run over L1 with other limits: p0010's alarm again, p0012's gone, one new.
+  fresh.clear();
+  EXPECT_EQ(store->recordAnalysis({"L1"},
+                                  {alarm("L1", "nelson-2", "p0010", 10, "t2"),
+                                   alarm("L1", "mr-1", "p0020", 20, "t2")},
+                                  "t2", &fresh),
+            1);
+  ASSERT_EQ(fresh.size(), 1u);
+  EXPECT_EQ(fresh[0].part, "p0020");
+  EXPECT_EQ(alarmKeys(*store, "L1"),
+            (std::vector<std::string>{"nelson-2 p0010 t2", "mr-1 p0020 t2"}));
+  EXPECT_EQ(store->analysedAt("L1"), "t2");
+  EXPECT_EQ(alarmKeys(*store, "L2"), (std::vector<std::string>{"nelson-1 p0003 t1"}));
+  EXPECT_EQ(store->analysedAt("L2"), "t1");
+  // In control at the third run: no alarm left.
+  EXPECT_EQ(store->recordAnalysis({"L1"}, {}, "t3"), 0);
+  EXPECT_TRUE(store->alarms("L1").empty());
+  EXPECT_EQ(store->analysedAt("L1"), "t3");
+  EXPECT_EQ(store->alarms("L2").size(), 1u);
+  // Every stored alarm belongs to its lot's current analysis.
+  EXPECT_EQ(store->connection()
+                .query("SELECT COUNT(*) FROM alarms a JOIN spc_analyses s ON a.analysis_id = s.id "
+                       "AND a.lot_id = s.lot_id")[0]
+                .integer(0),
+            1);
+  // An alarm of a lot the analysis does not name is refused, changing nothing.
+  EXPECT_THROW(store->recordAnalysis({"L1"}, {alarm("L2", "nelson-5", "p0004", 4, "t4")}, "t4"),
+               Error);
+  EXPECT_EQ(store->analysedAt("L1"), "t3");
+  EXPECT_EQ(alarmKeys(*store, "L2"), (std::vector<std::string>{"nelson-1 p0003 t1"}));
+}
+
+// A version-2 store kept every analysis's alarms together: migrated, they
+// stay (no analysis of theirs is known) until the lot's next analysis
+// replaces them.
+TEST_P(StoreTest, AVersionTwoStoresAlarmsStayUntilTheLotsNextAnalysis) {
+  {
+    auto old = ResultStore::openAtVersion(file(), 2);
+    old->connection().script(
+        "INSERT INTO lots (name, created_at) VALUES ('L1', 't');"
+        "INSERT INTO alarms (lot_id, dimension, rule, chart, part, position, value, detail, "
+        "raised_at) VALUES (1, 'width', 'nelson-1', 'individuals', 'p1', 1, 1.0, 'd', 'run1'), "
+        "(1, 'width', 'nelson-2', 'individuals', 'p9', 9, 1.0, 'd', 'run2');");
+    EXPECT_THROW(old->connection().query("SELECT COUNT(*) FROM spc_analyses"), Error);
+  }
+  auto store = ResultStore::open(file());
+  EXPECT_EQ(store->schemaVersion(), kStoreSchemaVersion);
+  EXPECT_EQ(alarmKeys(*store, "L1"),
+            (std::vector<std::string>{"nelson-1 p1 run1", "nelson-2 p9 run2"}));
+  EXPECT_FALSE(store->analysedAt("L1").has_value());
+  EXPECT_EQ(store->recordAnalysis({"L1"}, {alarm("L1", "nelson-2", "p9", 9, "run3")}, "run3"), 0);
+  EXPECT_EQ(alarmKeys(*store, "L1"), (std::vector<std::string>{"nelson-2 p9 run3"}));
 }
 
 TEST_P(StoreTest, AVersionOneStoreIsMigratedWithItsData) {
@@ -198,7 +279,7 @@ TEST_P(StoreTest, AVersionOneStoreIsMigratedWithItsData) {
     EXPECT_THROW(old->connection().query("SELECT COUNT(*) FROM alarms"), Error);
   }
   auto store = ResultStore::open(file());
-  EXPECT_EQ(store->schemaVersion(), 2);
+  EXPECT_EQ(store->schemaVersion(), kStoreSchemaVersion);
   const auto series = store->lotSeries("old");
   ASSERT_EQ(series.size(), 1u);
   EXPECT_EQ(series[0].dimensions.at(0).value, 20.5);

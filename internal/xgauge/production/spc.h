@@ -78,6 +78,28 @@ struct Capability {
 Capability capability(const std::vector<double>& baseline, double lsl, double usl,
                       double confidence = 0.95);
 
+// A histogram's bins over a series, by a rule on the data alone (the
+// tolerance does not set them; the page draws its limits as lines):
+//   Freedman-Diaconis, width 2 IQR n^(-1/3) (IQR by linear interpolation
+//   between order statistics, numpy's default); when the IQR is zero (more
+//   than half the values equal), Scott's 3.49 s n^(-1/3) with s the sample
+//   standard deviation; when every value is the same, one bin.
+// The bins cover [min, max] (count = ceil((max - min) / width), at least 1
+// and at most kMaxHistogramBins, widened to cover the range when capped),
+// centred on the data's range; a value on an inner edge falls in the bin
+// above it, the maximum in the last.
+inline constexpr size_t kMaxHistogramBins = 100;
+struct HistogramBins {
+  std::string rule;  // "freedman-diaconis", "scott" or "single"
+  double start = 0.0, width = 0.0;
+  size_t count = 1;
+  std::vector<size_t> counts;  // per bin
+  double centre(size_t bin) const { return start + (static_cast<double>(bin) + 0.5) * width; }
+};
+HistogramBins histogramBins(const std::vector<double>& values);  // at least one value
+// The q-quantile (0 <= q <= 1) by linear interpolation between order statistics.
+double quantile(std::vector<double> values, double q);
+
 // Quantiles of the standard normal and of the chi-square with nu degrees of
 // freedom, and the chi-square's distribution function (Boost.Math).
 double normalQuantile(double p);

@@ -20,7 +20,11 @@ namespace xgauge {
 struct SpcOptions {
   // Phase I: the first `baseline_parts` measured parts of the lot, or, when
   // `baseline_lot` is given, every measured part of that lot.
+  // A dimension with fewer measured values than `baseline_parts` is refused
+  // (Error naming the lot, the parts present and the baseline asked), or,
+  // with `skip_short_baseline`, left out (phase I not complete yet).
   size_t baseline_parts = 30;
+  bool skip_short_baseline = false;
   std::string baseline_lot;
   std::vector<SpcRule> rules = allRules();
   double confidence = 0.95;
@@ -43,7 +47,8 @@ struct DimensionSpc {
 };
 
 // Every dimension of `lot` that has a value in at least two parts. Error
-// when the lot is unknown or the baseline has fewer than 2 parts.
+// when the lot is unknown, the baseline has fewer than 2 parts, or (without
+// skip_short_baseline) fewer than baseline_parts.
 std::vector<DimensionSpc> analyseLot(ResultStore& store, const std::string& lot,
                                      const SpcOptions& options);
 

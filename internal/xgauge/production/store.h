@@ -30,7 +30,7 @@ class Connection;
 
 // The schema version this build writes; older stores are migrated on open,
 // newer ones refused.
-inline constexpr int kStoreSchemaVersion = 2;
+inline constexpr int kStoreSchemaVersion = 3;
 
 struct StoredDimension {
   std::string name;
@@ -130,10 +130,19 @@ class ResultStore {
   std::vector<StoredPart> lotSeries(const std::string& lot);
   // How many measurements the store holds for the lot (all, not latest).
   int64_t measurementCount(const std::string& lot);
-  // Adds alarms not already stored (same lot, dimension, rule, part);
-  // returns how many were new.
-  int addAlarms(const std::vector<StoredAlarm>& alarms);
+  // Records an SPC analysis of `lots` at `analysed_at`: each lot's alarms
+  // become those of `alarms` that are the lot's (none: the lot is in
+  // control), replacing the earlier analysis's, in one transaction. Returns
+  // how many were not among the lot's alarms before (same dimension, rule
+  // and part), and appends them to `fresh` when given. Error for an alarm of
+  // a lot not in `lots`.
+  int recordAnalysis(const std::vector<std::string>& lots, const std::vector<StoredAlarm>& alarms,
+                     const std::string& analysed_at, std::vector<StoredAlarm>* fresh = nullptr);
+  // The lot's alarms: its current analysis's (before a store's first
+  // analysis since version 3, those an earlier xgauge kept).
   std::vector<StoredAlarm> alarms(const std::string& lot);
+  // When the lot's current analysis ran; nullopt before the first.
+  std::optional<std::string> analysedAt(const std::string& lot);
 
   sql::Connection& connection() { return *connection_; }
 

@@ -39,6 +39,8 @@ struct InspectionSummary {
   RunTermination termination = RunTermination::kFailure;
   std::string message;  // kFailure: why
   int measured = 0, not_measured = 0, already = 0, failed = 0, not_ready = 0;
+  std::vector<std::string> failed_parts;  // part folders refused or failed (a folder run:
+                                          // also those incomplete or corrupt)
   int exit_status = 1;  // `xgauge inspect`'s: 1 when a part failed or on kFailure
 };
 

@@ -13,6 +13,7 @@
 #include "xgauge/production/store.h"
 #include "xgauge/report/html.h"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <map>
@@ -47,7 +48,10 @@ InspectionSummary inspectOrThrow(const InspectionOptions& options) {
   summary.termination = RunTermination::kDone;
   summary.measured = s.measured, summary.not_measured = s.not_measured;
   summary.already = s.already, summary.failed = s.failed, summary.not_ready = s.not_ready;
+  summary.failed_parts = s.failed_parts;
   summary.exit_status = s.failed > 0 ? 1 : 0;
+  if (s.failed > 0)
+    spdlog::error("inspect: {} part(s) failed: {}", s.failed, fmt::join(s.failed_parts, ", "));
   return summary;
 }
 

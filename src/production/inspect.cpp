@@ -96,11 +96,10 @@ InspectionPlan InspectionPlan::load(const fs::path& path) {
     if (plan.job.contains(key) && plan.job[key].is_string())
       plan.job[key] = fs::absolute(folder / plan.job[key].get<std::string>()).string();
   // Every key of the job checked now, against a part folder of the plan's
-  // own (no file is read but the part model).
-  const ConfigNode check = ConfigNode::fromJson(jobFor(plan, folder), path.string() + " (job)");
-  const fs::path part_file = MeasurementJob::partFileOf(check, path);
-  const PartModel part = PartModel::load(part_file);
-  MeasurementJob::fromConfig(check, path, part, true);
+  // own, and every file the parts share read (part model, machine, detector,
+  // material, verification): a missing or bad one fails before any part.
+  const ConfigNode check = job.derived(jobFor(plan, folder));
+  loadJobInputs(check, path, true);
   check.finish();
   for (const auto& r : plan.job.at("radiographs"))
     for (const char* key : kRadiographFileKeys)
@@ -212,7 +211,15 @@ class Inspector {
     for (const auto& folder : mine) {
       const std::string id = folder.filename().string();
       const PartFolderCheck check = checkPartFolder(folder);
-      if (check.state != PartFolderState::kReady) {
+      if (check.state != PartFolderState::kReady && !options_.watch) {
+        // A folder run looks once: what is not complete or not intact now
+        // will not become so; the part failed.
+        spdlog::error("{}: refused: {}: {}", id,
+                      check.state == PartFolderState::kCorrupt ? "corrupt" : "incomplete",
+                      check.why);
+        done_.insert(id);
+        markFailed(id);
+      } else if (check.state != PartFolderState::kReady) {
         ++summary_.not_ready;
         if (!warned_.count(id + check.why)) {
           warned_.insert(id + check.why);
@@ -231,6 +238,11 @@ class Inspector {
   }
 
   enum class Outcome { kMeasured, kAlready, kElsewhere, kFailed };
+
+  void markFailed(const std::string& id) {
+    ++summary_.failed;
+    summary_.failed_parts.push_back(id);
+  }
 
   Outcome take(const fs::path& folder, const Manifest& manifest) {
     const std::string id = folder.filename().string();
@@ -254,7 +266,7 @@ class Inspector {
         spdlog::error("{}: refused: {} is not in its manifest, so it cannot be trusted complete",
                       id, (folder / name).string());
         done_.insert(id);
-        ++summary_.failed;
+        markFailed(id);
         return Outcome::kFailed;
       }
     }
@@ -275,7 +287,7 @@ class Inspector {
       store_->release(record, claim.token);
       spdlog::error("{}: {}", id, e.what());
       done_.insert(id);
-      ++summary_.failed;
+      markFailed(id);
       return Outcome::kFailed;
     }
     fillFromResult(result, record);

@@ -21,6 +21,7 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <cmath>
 #include <cstdlib>
 #include <fstream>
 #include <random>
@@ -297,6 +298,7 @@ TEST_F(Production, SpcPagesAlarmsAndTheDfqExport) {
           (work() / "lot.csv").string() + " --part-number cuboid");
   ASSERT_EQ(r.status, 0) << r.output;
   const test::DfqFile file = test::readDfq(readText(dfq));
+  EXPECT_TRUE(file.problems.empty()) << file.problems.front();
   const auto parts = ResultStore::open(store)->lotSeries("L1");
   ASSERT_EQ(file.characteristics.size(), 2u);
   for (const auto& [i, c] : file.characteristics) {
@@ -304,9 +306,13 @@ TEST_F(Production, SpcPagesAlarmsAndTheDfqExport) {
     for (size_t k = 0; k < parts.size(); ++k) {
       const auto& d = parts[k].dimensions[static_cast<size_t>(i - 1)];
       EXPECT_EQ(c.fields.at(2001), d.name);
-      EXPECT_EQ(std::stod(c.fields.at(2110)), *d.lower_limit);
-      EXPECT_EQ(std::stod(c.fields.at(2111)), *d.upper_limit);
-      EXPECT_EQ(std::stod(c.values[k].fields.at(1)), d.value);
+      // Limits and values at the declared decimals (K2022).
+      const int decimals = std::stoi(c.fields.at(2022));
+      const double half = 0.5 * std::pow(10.0, -decimals) * (1 + 1e-9);
+      EXPECT_NEAR(std::stod(c.fields.at(2110)), *d.lower_limit, half);
+      EXPECT_NEAR(std::stod(c.fields.at(2111)), *d.upper_limit, half);
+      EXPECT_EQ(test::dfqDecimals(c.values[k].fields.at(1)), decimals);
+      EXPECT_NEAR(std::stod(c.values[k].fields.at(1)), d.value, half);
       const std::string& t = parts[k].acquired_at;  // YYYY-MM-DDTHH:MM:SSZ
       EXPECT_EQ(c.values[k].fields.at(4), t.substr(8, 2) + "." + t.substr(5, 2) + "." +
                                               t.substr(0, 4) + "/" + t.substr(11, 8));
@@ -372,6 +378,53 @@ TEST_F(Production, WatchTakesPartsAsTheyArrive) {
   int64_t count = 0;
   EXPECT_EQ(values(store, &count).size(), 2u);
   EXPECT_EQ(count, 2);
+}
+
+// A folder run looks once: a part whose image is shorter than its manifest
+// says and one whose image fails its SHA-256 are failed parts (named, exit
+// non-zero); the others are measured and stored.
+TEST_F(Production, AFolderRunFailsOnATruncatedAndACorruptPartAndMeasuresTheRest) {
+  const std::string store = freshStore("broken.sqlite");
+  const fs::path lot = work() / "broken_lot";
+  fs::remove_all(lot);
+  fs::copy(work() / "lot/parts", lot, fs::copy_options::recursive);
+  fs::resize_file(lot / "p0002/t00.tif", fs::file_size(lot / "p0002/t00.tif") - 100);
+  {
+    std::fstream f(lot / "p0003/t01.tif", std::ios::in | std::ios::out | std::ios::binary);
+    f.seekg(-10, std::ios::end);
+    const char c = static_cast<char>(f.get() ^ 0x5a);
+    f.seekp(-10, std::ios::end);
+    f.put(c);
+  }
+  const auto r = run("inspect " + (work() / "plan.json").string() + " " + lot.string() +
+                     " --store " + store + " -o " + (work() / "out_broken").string() +
+                     " --no-report -q");
+  EXPECT_NE(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find("p0002: refused: incomplete"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("p0003: refused: corrupt"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("2 part(s) failed: p0002, p0003"), std::string::npos) << r.output;
+  std::set<std::string> stored;
+  for (const auto& p : ResultStore::open(store)->lotSeries("L1")) stored.insert(p.part);
+  EXPECT_EQ(stored, (std::set<std::string>{"p0001", "p0004"}));
+}
+
+// A plan whose material file is missing fails when it is read: before any
+// part, nothing stored, no output folder.
+TEST_F(Production, APlanNamingAMissingMaterialFailsBeforeAnyPart) {
+  const std::string store = freshStore("no_material.sqlite");
+  auto plan = nlohmann::json::parse(readText(work() / "plan.json"));
+  const std::string missing = (work() / "no_such_material.json").string();
+  plan["job"]["material"] = missing;
+  std::ofstream(work() / "plan_no_material.json") << plan.dump(2);
+  const fs::path out = work() / "out_no_material";
+  const auto r = run("inspect " + (work() / "plan_no_material.json").string() + " " +
+                     (work() / "lot/parts").string() + " --store " + store + " -o " +
+                     out.string() + " --no-report -q");
+  EXPECT_NE(r.status, 0) << r.output;
+  EXPECT_NE(r.output.find(missing), std::string::npos) << r.output;
+  EXPECT_EQ(r.output.find("p0001"), std::string::npos) << r.output;  // no part was looked at
+  EXPECT_FALSE(fs::exists(out));
+  EXPECT_TRUE(ResultStore::open(store)->lots().empty());
 }
 
 }  // namespace

@@ -358,3 +358,23 @@ if __name__ == "__main__":
             print(f"TimeoutError after {took:.2f}s: {e}")
             assert took < 3
     print(f"self-test passed in {time.monotonic() - t0:.2f}s")
+
+
+def page_test_arguments(description: str):
+    """The page tests' command line (--xgauge BIN --source DIR --work DIR
+    [--chromium BIN]): the work folder made afresh and entered; returns the
+    arguments with xgauge and source as absolute paths."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=description)
+    parser.add_argument("--xgauge", required=True)
+    parser.add_argument("--source", required=True)
+    parser.add_argument("--work", required=True)
+    parser.add_argument("--chromium", default="chromium")
+    args = parser.parse_args()
+    args.xgauge = os.path.abspath(args.xgauge)
+    args.source = os.path.abspath(args.source)
+    shutil.rmtree(args.work, ignore_errors=True)
+    os.makedirs(args.work)
+    os.chdir(args.work)
+    return args

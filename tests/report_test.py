@@ -19,17 +19,14 @@ and checks that:
 
 Usage: report_test.py --xgauge BIN --source DIR --work DIR [--chromium BIN]
 """
-import argparse
 import json
-import math
 import os
-import shutil
 import subprocess
 import sys
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from browser import Browser  # noqa: E402
+from browser import Browser, page_test_arguments  # noqa: E402
 
 FAILURES = []
 
@@ -232,17 +229,8 @@ def check_spc(browser, analyses):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--xgauge", required=True)
-    parser.add_argument("--source", required=True)
-    parser.add_argument("--work", required=True)
-    parser.add_argument("--chromium", default="chromium")
-    args = parser.parse_args()
-    xgauge = os.path.abspath(args.xgauge)
-    source = os.path.abspath(args.source)
-    shutil.rmtree(args.work, ignore_errors=True)
-    os.makedirs(args.work)
-    os.chdir(args.work)
+    args = page_test_arguments(__doc__.splitlines()[0])
+    xgauge, source = args.xgauge, args.source
     reports = make_reports(xgauge, source, args.work)
 
     checks = {"measurement": check_measurement, "study": check_study, "spc": check_spc}

@@ -25,18 +25,16 @@ drifting; height steady. Then:
 
 Usage: spc_page_test.py --xgauge BIN --source DIR --work DIR [--chromium BIN]
 """
-import argparse
 import json
 import math
 import os
 import random
-import shutil
 import sqlite3
 import subprocess
 import sys
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from browser import Browser  # noqa: E402
+from browser import Browser, page_test_arguments  # noqa: E402
 
 FAILURES = []
 PARTS = 24
@@ -308,17 +306,8 @@ def check_page(chromium, page, s):
 
 
 def main():
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--xgauge", required=True)
-    parser.add_argument("--source", required=True)
-    parser.add_argument("--work", required=True)
-    parser.add_argument("--chromium", default="chromium")
-    args = parser.parse_args()
-    binary = os.path.abspath(args.xgauge)
-    source = os.path.abspath(args.source)
-    shutil.rmtree(args.work, ignore_errors=True)
-    os.makedirs(args.work)
-    os.chdir(args.work)
+    args = page_test_arguments(__doc__.splitlines()[0])
+    binary, source = args.xgauge, args.source
     values = make_store(binary, "lot.sqlite")
     width = check_cli(binary, "lot.sqlite", values)
     check_page(args.chromium, "spc/L1/width.html", width)

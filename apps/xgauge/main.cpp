@@ -46,7 +46,7 @@ int main(int argc, char** argv) {
   app.fallthrough();  // global flags (-q, -j) may follow the subcommand too
   bool quiet = false, verbose = false;
   int threads = 0;
-  app.add_flag("-q,--quiet", quiet, "Only warnings and errors; no progress bars");
+  app.add_flag("-q,--quiet", quiet, "Only errors; no progress bars (warnings stay in each result.json and report)");
   app.add_flag("-v,--verbose", verbose, "Debug messages");
   app.add_option("-j,--threads", threads, "Worker threads (0 = all cores)")->check(CLI::NonNegativeNumber);
   uint64_t max_image_mb = xgauge::kDefaultMaxImageBytes >> 20;

@@ -33,7 +33,7 @@ const char* RunTerminationToString(RunTermination type);  // "done", "failure"
 void PrepareProcess();
 
 enum class LogLevel {
-  kQuiet,    // warnings and errors only
+  kQuiet,    // errors only (a result's warnings stay in its result.json and report)
   kNormal,   // also what each step did
   kVerbose,  // also debug messages
 };

@@ -250,8 +250,9 @@ TEST(PartModel, MissingKey) {
 TEST(PartModel, MisspelledKey) {
   expectLoadError(replaced(kNotchedBar, R"("thesis": "θ1")", R"("theses": "θ1")"),
                   "unknown key 'theses'; did you mean 'thesis'?", "/dimensions/0/theses");
-  expectLoadError(replaced(kNotchedBar, R"("from": "0")", R"("form": "0")"), "missing key 'from'",
-                  "/shape");
+  // A required key misspelled: the unknown key is named, not the missing one.
+  expectLoadError(replaced(kNotchedBar, R"("from": "0")", R"("form": "0")"),
+                  "unknown key 'form'; did you mean 'from'?", "/shape/form");
 }
 
 TEST(PartModel, BadDeclarations) {

@@ -465,12 +465,17 @@ std::string replaced(std::string text, const std::string& from, const std::strin
 
 TEST(Solid, ErrorsNameTheKeyPath) {
   ASSERT_NO_THROW(loadText(kTwoBoxes));
-  // A misspelled list of solids: at() reports it missing, at the node.
-  expectLoadError(replaced(kTwoBoxes, R"("solids")", R"("solid")"), "missing key 'solids'",
-                  "/shape");
+  // A misspelled list of solids: the unknown key is named before the
+  // missing one it misspells, at its own path.
+  expectLoadError(replaced(kTwoBoxes, R"("solids")", R"("solid")"),
+                  "unknown key 'solid'; did you mean 'solids'?", "/shape/solid");
   // ... also in a nested node.
   expectLoadError(replaced(kTwoBoxes, R"({"type": "box", "min": [0, 0, 0], "max": [1, 1, 1]})",
                            R"({"type": "difference", "solid": []})"),
+                  "unknown key 'solid'; did you mean 'solids'?", "/shape/solids/0/solid");
+  // A required key absent, with nothing like it: missing, at the node.
+  expectLoadError(replaced(kTwoBoxes, R"({"type": "box", "min": [0, 0, 0], "max": [1, 1, 1]})",
+                           R"({"type": "difference"})"),
                   "missing key 'solids'", "/shape/solids/0");
   // A key that no CSG node has.
   expectLoadError(replaced(kTwoBoxes, R"("type": "union",)", R"("type": "union", "colour": "red",)"),

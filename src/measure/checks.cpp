@@ -195,13 +195,12 @@ RadiographCheck misfitCheck(const ForwardModel& model, int level, const Residual
 }
 
 // The paths through the fitted part over one radiograph's roi: its shadow's
-// area and longest path into `rc`, and warnings for paths beyond the
-// material's calibrated range (there the curve is extrapolated). Returns
-// the pixels on or next to the shadow.
+// area, longest path and share of paths below the material's calibrated
+// range into `rc`. Returns the pixels on or next to the shadow.
 std::vector<uint8_t> checkPaths(ForwardModel& model, std::span<const double> theta, int level,
                                 const ResidualSegment& segment,
                                 const std::optional<std::array<double, 2>>& calibrated,
-                                RadiographCheck& rc, SelfCheck& check) {
+                                RadiographCheck& rc) {
   const int r = segment.radiograph;
   const PixelRect roi = segment.roi;
   const double scale = static_cast<double>(1 << level);
@@ -220,18 +219,33 @@ std::vector<uint8_t> checkPaths(ForwardModel& model, std::span<const double> the
       paths, kRegionPartMarginMm * magnificationOf(model, theta, r) / (machine.pitch_u_mm * scale));
   rc.below_range_fraction =
       through > 0 ? static_cast<double>(short_paths) / static_cast<double>(through) : 0.0;
-  if (calibrated && rc.longest_path_mm > (*calibrated)[1] * (1.0 + kBeyondRange))
-    check.warnings.push_back(
-        fmt::format("{}: the part has paths up to {:.2f} mm, beyond the {:.2f} mm the material was "
-                    "calibrated to: the curve is extrapolated there; calibrate over longer paths",
-                    rc.name, rc.longest_path_mm, (*calibrated)[1]));
-  if (rc.below_range_fraction > kBelowRangeFraction)
-    check.warnings.push_back(fmt::format(
-        "{}: {:.0f} % of the pixels that see the part have paths below the {:.2f} mm the "
-        "material was calibrated from: the curve is interpolated towards I(0) = 1 there; "
-        "calibrate over shorter paths",
-        rc.name, 100.0 * rc.below_range_fraction, (*calibrated)[0]));
   return near_part;
+}
+
+// Paths beyond the material's calibrated range, one warning for every
+// radiograph that has them (and one for paths below it), so that a
+// measurement says it once.
+void checkCalibratedRange(const std::optional<std::array<double, 2>>& calibrated,
+                          SelfCheck& check) {
+  if (!calibrated) return;
+  std::vector<std::string> beyond, below;
+  for (const RadiographCheck& rc : check.radiographs) {
+    if (rc.longest_path_mm > (*calibrated)[1] * (1.0 + kBeyondRange))
+      beyond.push_back(fmt::format("{} {:.2f} mm", rc.name, rc.longest_path_mm));
+    if (rc.below_range_fraction > kBelowRangeFraction)
+      below.push_back(fmt::format("{} {:.0f} %", rc.name, 100.0 * rc.below_range_fraction));
+  }
+  if (!beyond.empty())
+    check.warnings.push_back(fmt::format(
+        "the part has paths beyond the {:.2f} mm the material was calibrated to (the longest: {}): "
+        "the curve is extrapolated there; calibrate over longer paths",
+        (*calibrated)[1], fmt::join(beyond, ", ")));
+  if (!below.empty())
+    check.warnings.push_back(fmt::format(
+        "of the pixels that see the part, more than {:.0f} % have paths below the {:.2f} mm the "
+        "material was calibrated from ({}): the curve is interpolated towards I(0) = 1 there; "
+        "calibrate over shorter paths",
+        100.0 * kBelowRangeFraction, (*calibrated)[0], fmt::join(below, ", ")));
 }
 
 // The mean of each pixel's 3 x 3 neighbourhood (within the image).
@@ -374,22 +388,39 @@ void checkRegionShare(const AcceptanceRule& rule, SelfCheck& check) {
         region_area, 100.0 * check.region_share, shadow_area, 100.0 * rule.max_region_share));
 }
 
-// Every region, the strongest first, as a warning.
+// A region as a warning's words: where it is and how strong.
+std::string describeRegion(const ResidualRegion& region) {
+  return fmt::format(
+      "{} at pixel ({:.0f}, {:.0f}), {:.2f} mm^2 on the detector{}, {:.1f} sigmas, {} than the "
+      "model{}",
+      region.radiograph, region.centre_px.x(), region.centre_px.y(), region.area_mm2,
+      region.part_area_mm2 > 0.0
+          ? fmt::format(" ({:.2f} mm^2 on or next to the part's shadow)", region.part_area_mm2)
+          : std::string(" in the open beam (a detector effect the model leaves out)"),
+      region.sigmas, region.sign,
+      region.part_mm ? fmt::format(" (part coordinates ({:.2f}, {:.2f}, {:.2f}) mm)",
+                                   region.part_mm->x(), region.part_mm->y(), region.part_mm->z())
+                     : std::string());
+}
+
+// The regions, strongest first; one warning for those of kRegionWarnSigmas
+// or more (the rest are in the result and the report, not warned about:
+// parts that match their model show them too).
 void warnRegions(SelfCheck& check) {
   std::sort(check.regions.begin(), check.regions.end(),
             [](const ResidualRegion& a, const ResidualRegion& b) { return a.sigmas > b.sigmas; });
+  std::vector<std::string> strong;
   for (const ResidualRegion& region : check.regions)
-    check.warnings.push_back(fmt::format(
-        "{}: a residual region at pixel ({:.0f}, {:.0f}), {:.2f} mm^2 on the detector{}, {:.1f} "
-        "sigmas, {} than the model{}",
-        region.radiograph, region.centre_px.x(), region.centre_px.y(), region.area_mm2,
-        region.part_area_mm2 > 0.0
-            ? fmt::format(" ({:.2f} mm^2 on or next to the part's shadow)", region.part_area_mm2)
-            : std::string(" in the open beam (a detector effect the model leaves out)"),
-        region.sigmas, region.sign,
-        region.part_mm ? fmt::format(" (part coordinates ({:.2f}, {:.2f}, {:.2f}) mm)",
-                                     region.part_mm->x(), region.part_mm->y(), region.part_mm->z())
-                       : std::string()));
+    if (region.sigmas >= kRegionWarnSigmas) strong.push_back(describeRegion(region));
+  if (strong.empty()) return;
+  constexpr size_t kNamed = 3;
+  std::string text = fmt::format(
+      "{} residual region(s) of {:.0f} sigmas or more, where the part may differ from its model "
+      "(a void, a chip, a burr, a feature the model lacks): {}",
+      strong.size(), kRegionWarnSigmas,
+      fmt::join(strong.begin(), strong.begin() + static_cast<ptrdiff_t>(std::min(kNamed, strong.size())), "; "));
+  if (strong.size() > kNamed) text += fmt::format("; and {} more", strong.size() - kNamed);
+  check.warnings.push_back(std::move(text));
 }
 
 // One radiograph much worse than the others.
@@ -425,11 +456,12 @@ SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
     const ResidualImage residual = residualImage(fit, segment);
     RadiographCheck rc = misfitCheck(model, fit.level, segment, residual, rule, check);
     const std::vector<uint8_t> near_part =
-        checkPaths(model, theta, fit.level, segment, calibrated, rc, check);
+        checkPaths(model, theta, fit.level, segment, calibrated, rc);
     check.radiographs.push_back(rc);
     findResidualRegions(model, theta, mesh, fit.level, segment, residual.image, near_part, check,
                         region_pixels);
   }
+  checkCalibratedRange(calibrated, check);
   checkRegionShare(rule, check);
   warnRegions(check);
   checkWorseRadiograph(check);

@@ -300,16 +300,19 @@ void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementRe
   // Where the part differs from its model, U includes how far the
   // dimensions move without those pixels.
   addMisfitTerm(model, fit, region_pixels, result.uncertainty);
-  double largest = 0.0;
+  // Warned about where the shift is a large part of a dimension's
+  // uncertainty (kMisfitWarnShare of u_c); smaller ones are in the budget.
+  double largest = 0.0, share = 0.0;
   std::string moved;
   for (const DimensionUncertainty& u : result.uncertainty.dimensions)
     for (const UncertaintyComponent& c : u.components)
-      if (c.name == "misfit" && c.contribution > largest) largest = c.contribution, moved = u.name;
-  if (!moved.empty())
+      if (c.name == "misfit" && u.combined > 0.0 && c.contribution / u.combined > share)
+        share = c.contribution / u.combined, largest = c.contribution, moved = u.name;
+  if (share > kMisfitWarnShare)
     result.check.warnings.push_back(fmt::format(
-        "the {} residual region(s) left out move the dimensions by up to {:.4f} ({}): each "
-        "dimension's U includes its shift as the component \"misfit\"",
-        result.check.regions.size(), largest, moved));
+        "the {} residual region(s) left out move {} by {:.4f}, {:.0f} % of its standard "
+        "uncertainty: each dimension's U includes its shift as the component \"misfit\"",
+        result.check.regions.size(), moved, largest, 100.0 * share));
   spdlog::debug("uncertainty: the self-checks in {:.2f} s", secondsSince(checks_start));
   for (const std::string& note : result.uncertainty.notes) spdlog::info("uncertainty: {}", note);
   for (const std::string& warning : result.check.warnings) spdlog::warn("{}", warning);

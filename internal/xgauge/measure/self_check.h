@@ -37,6 +37,16 @@ inline constexpr double kWorseRatio = 2.0;
 inline constexpr double kRegionSigmas = 5.0;
 inline constexpr int kRegionMinPixels = 6;
 inline constexpr double kRegionGrowSigmas = 2.5;
+// Regions are found from kRegionSigmas, and every one is in the result and
+// its report; a warning names those of kRegionWarnSigmas or more. Set from
+// the false-alarm rate on parts that match their model (docs/method.md,
+// "Self-checks"): the replica's Prism A pairs at 4096^2 and a lot at 1024^2,
+// lab2's screw and wedge blocks, showed regions of up to 9.7 sigmas; lab2's
+// bracket with its 0.75-1.4 mm fillet the model lacks, 23 to 86.
+inline constexpr double kRegionWarnSigmas = 12.0;
+// The misfit term of U (what leaving the regions out moves) is warned about
+// when it is more than this share of a dimension's standard uncertainty.
+inline constexpr double kMisfitWarnShare = 0.5;
 inline constexpr double kBeyondRange = 0.01;
 inline constexpr double kBelowRangeFraction = 0.05;
 // How far from the fitted part's shadow (mm at the part, scaled by the

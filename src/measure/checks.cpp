@@ -222,7 +222,7 @@ std::vector<uint8_t> checkPaths(ForwardModel& model, std::span<const double> the
   return near_part;
 }
 
-// Paths beyond the material's calibrated range, one warning for every
+// Paths beyond the material's calibrated range: one warning naming every
 // radiograph that has them (and one for paths below it), so that a
 // measurement says it once.
 void checkCalibratedRange(const std::optional<std::array<double, 2>>& calibrated,
@@ -409,17 +409,20 @@ std::string describeRegion(const ResidualRegion& region) {
 void warnRegions(SelfCheck& check) {
   std::sort(check.regions.begin(), check.regions.end(),
             [](const ResidualRegion& a, const ResidualRegion& b) { return a.sigmas > b.sigmas; });
-  std::vector<std::string> strong;
-  for (const ResidualRegion& region : check.regions)
-    if (region.sigmas >= kRegionWarnSigmas) strong.push_back(describeRegion(region));
-  if (strong.empty()) return;
+  // Sorted, the strong ones come first: the three strongest are named.
+  const auto strong = static_cast<size_t>(
+      std::count_if(check.regions.begin(), check.regions.end(),
+                    [](const ResidualRegion& r) { return r.sigmas >= kRegionWarnSigmas; }));
+  if (strong == 0) return;
   constexpr size_t kNamed = 3;
+  std::vector<std::string> named;
+  for (size_t i = 0; i < std::min(kNamed, strong); ++i)
+    named.push_back(describeRegion(check.regions[i]));
   std::string text = fmt::format(
       "{} residual region(s) of {:.0f} sigmas or more, where the part may differ from its model "
       "(a void, a chip, a burr, a feature the model lacks): {}",
-      strong.size(), kRegionWarnSigmas,
-      fmt::join(strong.begin(), strong.begin() + static_cast<ptrdiff_t>(std::min(kNamed, strong.size())), "; "));
-  if (strong.size() > kNamed) text += fmt::format("; and {} more", strong.size() - kNamed);
+      strong, kRegionWarnSigmas, fmt::join(named, "; "));
+  if (strong > kNamed) text += fmt::format("; and {} more", strong - kNamed);
   check.warnings.push_back(std::move(text));
 }
 

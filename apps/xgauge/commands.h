@@ -38,6 +38,7 @@ void addCalibrateCommand(CLI::App& app, Commands& commands);
 void addStudyCommand(CLI::App& app, Commands& commands);
 void addSimulateCommand(CLI::App& app, Commands& commands);
 void addVerifyCommand(CLI::App& app, Commands& commands);
+void addPlanCommand(CLI::App& app, Commands& commands);
 void addCharacterizeCommand(CLI::App& app, Commands& commands);
 void addInspectCommand(CLI::App& app, Commands& commands);
 void addSpcCommand(CLI::App& app, Commands& commands);

@@ -61,7 +61,7 @@ int main(int argc, char** argv) {
   for (auto add : {cli::addRenderCommand, cli::addGradientCommand, cli::addConvertCommand,
                    cli::addNormalizeCommand, cli::addMeasureCommand, cli::addMaterialCommand,
                    cli::addCalibrateCommand, cli::addStudyCommand, cli::addSimulateCommand,
-                   cli::addVerifyCommand, cli::addCharacterizeCommand, cli::addInspectCommand,
+                   cli::addVerifyCommand, cli::addPlanCommand, cli::addCharacterizeCommand, cli::addInspectCommand,
                    cli::addSpcCommand, cli::addExportCommand, cli::addPartCommand})
     add(app, commands);
 

@@ -1,5 +1,5 @@
 // `xgauge measure`, `calibrate wedge|part|geometry`, `characterize` and
-// `verify`: xgauge/xgauge.h's calls and a print.
+// `verify`, `plan`: xgauge/xgauge.h's calls and a print.
 #include "commands.h"
 #include "xgauge/runtime.h"
 #include "xgauge/xgauge.h"
@@ -138,6 +138,25 @@ void addVerifyCommand(CLI::App& app, Commands& commands) {
   cmd->add_option("-o,--output", *output, "Output folder: verification.json")->required();
   commands.push_back({cmd, [job, output] {
                         const VerificationSummary summary = succeeded(verify({*job, *output}));
+                        std::fputs(summary.report.c_str(), stdout);
+                        LogMessage(Severity::kInfo, summary.message);
+                        return 0;
+                      }});
+}
+
+void addPlanCommand(CLI::App& app, Commands& commands) {
+  auto job = std::make_shared<std::string>(), output = std::make_shared<std::string>();
+  CLI::App* cmd = app.add_subcommand(
+      "plan",
+      "Where to put the part: predict each dimension's U for every set of candidate views and "
+      "rank the sets (before a shot is taken)");
+  cmd->add_option("job", *job, "Plan job (JSON): the measurement job, the shot's noise, the "
+                               "candidate views")
+      ->required();
+  cmd->add_option("-o,--output", *output, "Output folder: plan.json, job.json, report.html")
+      ->required();
+  commands.push_back({cmd, [job, output] {
+                        const PlanSummary summary = succeeded(plan({*job, *output}));
                         std::fputs(summary.report.c_str(), stdout);
                         LogMessage(Severity::kInfo, summary.message);
                         return 0;

@@ -236,4 +236,25 @@ struct VerificationSummary {
 
 VerificationSummary verify(const VerificationOptions& options);
 
+// Where to put the part (xgauge plan): every set of the job's candidate
+// views predicted before a shot is taken, each free dimension's U from the
+// measurement's own budget at the nominal part, the sets ranked by the
+// job's criterion (plan.json, job.json: the best set's measurement job,
+// report.html; docs/method.md, "Planning the views").
+struct PlanOptions {
+  std::filesystem::path job_file;       // the plan job (docs/formats.md, "Plan job")
+  std::filesystem::path output_folder;  // required
+};
+
+struct PlanSummary {
+  RunTermination termination = RunTermination::kFailure;
+  // kFailure: why; otherwise what was written, in words.
+  std::string message;
+  std::size_t screened = 0;  // sets of views screened
+  std::string report;        // the table `xgauge plan` prints: the best and the compared sets
+};
+
+// Never throws for bad input; shows a progress bar where enabled.
+PlanSummary plan(const PlanOptions& options);
+
 }  // namespace xgauge

@@ -25,34 +25,6 @@ constexpr double kGeometricNullRatio = 1e-10;  // of the vertex velocities' scal
 constexpr double kNullRatio = 1e-9;  // eigenvalue of the scaled normal matrix below which a
                                      // direction is taken as not determined at all
 
-// The pseudo-inverse of the symmetric positive semi-definite A, scaled to a
-// unit diagonal first so that millimetres and degrees compare; `null` gets
-// the directions (in unscaled parameters) it drops.
-Eigen::MatrixXd pseudoInverse(const Eigen::MatrixXd& a, std::vector<Eigen::VectorXd>& null) {
-  const Eigen::Index n = a.rows();
-  Eigen::VectorXd s(n);
-  for (Eigen::Index k = 0; k < n; ++k) s(k) = a(k, k) > 0.0 ? 1.0 / std::sqrt(a(k, k)) : 0.0;
-  const Eigen::MatrixXd scaled = s.asDiagonal() * a * s.asDiagonal();
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(scaled);
-  const Eigen::VectorXd& lambda = eigen.eigenvalues();
-  const double largest = lambda.maxCoeff();
-  spdlog::debug(
-      "uncertainty: the scaled normal matrix's smallest eigenvalues relative to its "
-      "largest: {:.3g}",
-      fmt::join(std::vector<double>(lambda.data(), lambda.data() + std::min<Eigen::Index>(n, 4)) |
-                    std::views::transform([&](double l) { return l / largest; }),
-                ", "));
-  Eigen::VectorXd inverse(n);
-  for (Eigen::Index k = 0; k < n; ++k) {
-    const bool dropped = !(lambda(k) > kNullRatio * largest);
-    inverse(k) = dropped ? 0.0 : 1.0 / lambda(k);
-    if (dropped) null.push_back((s.asDiagonal() * eigen.eigenvectors().col(k)).normalized());
-  }
-  for (Eigen::Index k = 0; k < n; ++k)
-    if (s(k) == 0.0) null.push_back(Eigen::VectorXd::Unit(n, k));  // a parameter nothing sees
-  return s.asDiagonal() * eigen.eigenvectors() * inverse.asDiagonal() *
-         eigen.eigenvectors().transpose() * s.asDiagonal();
-}
 
 // The directions of the parameters `indices` along which no vertex of the
 // posed part moves in any of `radiographs`: pose and dimensions that
@@ -115,6 +87,37 @@ Eigen::MatrixXd geometricNullSpace(ForwardModel& model, std::span<const double> 
          Eigen::MatrixXd::Identity(n, basis.cols());
 }
 
+}  // namespace
+
+// The pseudo-inverse of the symmetric positive semi-definite A, scaled to a
+// unit diagonal first so that millimetres and degrees compare; `null` gets
+// the directions (in unscaled parameters) it drops.
+Eigen::MatrixXd pseudoInverse(const Eigen::MatrixXd& a, std::vector<Eigen::VectorXd>& null) {
+  const Eigen::Index n = a.rows();
+  Eigen::VectorXd s(n);
+  for (Eigen::Index k = 0; k < n; ++k) s(k) = a(k, k) > 0.0 ? 1.0 / std::sqrt(a(k, k)) : 0.0;
+  const Eigen::MatrixXd scaled = s.asDiagonal() * a * s.asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> eigen(scaled);
+  const Eigen::VectorXd& lambda = eigen.eigenvalues();
+  const double largest = lambda.maxCoeff();
+  spdlog::debug(
+      "uncertainty: the scaled normal matrix's smallest eigenvalues relative to its "
+      "largest: {:.3g}",
+      fmt::join(std::vector<double>(lambda.data(), lambda.data() + std::min<Eigen::Index>(n, 4)) |
+                    std::views::transform([&](double l) { return l / largest; }),
+                ", "));
+  Eigen::VectorXd inverse(n);
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const bool dropped = !(lambda(k) > kNullRatio * largest);
+    inverse(k) = dropped ? 0.0 : 1.0 / lambda(k);
+    if (dropped) null.push_back((s.asDiagonal() * eigen.eigenvectors().col(k)).normalized());
+  }
+  for (Eigen::Index k = 0; k < n; ++k)
+    if (s(k) == 0.0) null.push_back(Eigen::VectorXd::Unit(n, k));  // a parameter nothing sees
+  return s.asDiagonal() * eigen.eigenvectors() * inverse.asDiagonal() *
+         eigen.eigenvectors().transpose() * s.asDiagonal();
+}
+
 // A = J^T W J, with the refinement's prior.
 Eigen::MatrixXd normalMatrix(const LinearizedFit& fit, const Eigen::VectorXd& w) {
   const Eigen::MatrixXd& jacobian = fit.jacobian;
@@ -159,8 +162,6 @@ Eigen::MatrixXd scoreMatrix(const LinearizedFit& fit, const Eigen::VectorXd& w) 
   }
   return b;
 }
-
-}  // namespace
 
 std::vector<int> fitRadiographs(const LinearizedFit& fit) {
   std::vector<int> radiographs;

@@ -36,6 +36,19 @@ struct Covariance {
 // The radiographs of the fit's residual segments, in their order.
 std::vector<int> fitRadiographs(const LinearizedFit& fit);
 
+// The pseudo-inverse of the symmetric positive semi-definite A, scaled to a
+// unit diagonal first so that millimetres and degrees compare; `null` gets
+// the directions (in unscaled parameters) it drops.
+Eigen::MatrixXd pseudoInverse(const Eigen::MatrixXd& a, std::vector<Eigen::VectorXd>& null);
+
+// A = J^T W J of the fit, with the refinement's prior; `w` its weights.
+Eigen::MatrixXd normalMatrix(const LinearizedFit& fit, const Eigen::VectorXd& w);
+
+// B: the fit's scores J_i w_i r_i summed per block of 16 x 16 pixels, then
+// their outer products (the blocks taken as independent, the pixels within
+// a block not).
+Eigen::MatrixXd scoreMatrix(const LinearizedFit& fit, const Eigen::VectorXd& w);
+
 // A, the directions no radiograph sees taken out of it, its pseudo-inverse,
 // B and the sandwich, from the fit at theta over `radiographs`.
 Covariance statisticalCovariance(ForwardModel& model, std::span<const double> theta,

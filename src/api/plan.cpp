@@ -1,0 +1,63 @@
+// The front door's view plan (xgauge/xgauge.h) over plan/plan.h. `xgauge
+// plan` is this call and a print.
+#include "guard.h"
+#include "xgauge/core/output.h"
+#include "xgauge/plan/plan.h"
+#include "xgauge/xgauge.h"
+
+#include <fmt/format.h>
+
+#include <cmath>
+
+namespace xgauge {
+
+namespace {
+
+// The best sets and the compared ones: views (patterns), criterion and U
+// per dimension ("-" where the views do not determine it).
+std::string planTable(const PlanJob& job, const PlanResult& result) {
+  const auto row = [&](const std::string& label, const PredictedSet& set) {
+    std::string views;
+    for (size_t k = 0; k < set.views.size(); ++k)
+      views += fmt::format("{}{}:{}", k ? " " : "", job.views[static_cast<size_t>(set.views[k])].name,
+                           set.patterns[k]);
+    std::string line = fmt::format("{:<9} {:<36} {:>9}", label, views,
+                                   std::isfinite(set.score) ? fmt::format("{:.4f}", set.score) : "-");
+    for (const PredictedDimension& d : set.dimensions)
+      line += d.identifiable ? fmt::format(" {:>10.4f}", d.expanded) : fmt::format(" {:>10}", "-");
+    return line + "\n";
+  };
+  std::string table = fmt::format("{:<9} {:<36} {:>9}", "set", "views", "criterion");
+  for (const PredictedDimension& d : result.ranked.front().dimensions)
+    table += fmt::format(" {:>10}", d.name.substr(0, 10));
+  table += "\n";
+  int budgeted = 0;
+  for (const PredictedSet& s : result.ranked)
+    if (s.budgeted) table += row(fmt::format("#{}", ++budgeted), s);
+  for (const PredictedSet& s : result.compared) table += row("compared", s);
+  table += fmt::format("U (k = 2) predicted by the measurement's budget at the nominal part; {}.\n",
+                       result.search);
+  return table;
+}
+
+PlanSummary planOrThrow(const PlanOptions& options) {
+  checkOutputFolder(options.output_folder);
+  const PlanJob job = PlanJob::load(options.job_file);
+  const PlanResult result = planViews(job);
+  writePlan(job, result, options.output_folder);
+  PlanSummary summary;
+  summary.screened = static_cast<std::size_t>(result.screened);
+  summary.report = planTable(job, result);
+  summary.termination = RunTermination::kDone;
+  summary.message = fmt::format("wrote {0}/plan.json, {0}/job.json and {0}/report.html",
+                                options.output_folder.string());
+  return summary;
+}
+
+}  // namespace
+
+PlanSummary plan(const PlanOptions& options) {
+  return api::guarded<PlanSummary>([&] { return planOrThrow(options); });
+}
+
+}  // namespace xgauge

@@ -43,15 +43,13 @@ MeasurementInputs inputsOf(const PlanJob& job, const nlohmann::json& measurement
 }
 
 // A corner of the open beam for the white region: of the four corner
-// squares (a twentieth of the detector's width, inset by a fiftieth), the
-// brightest, if its mean is within 2 % of the image's 99th percentile (the
-// open beam; a pixel's noise alone can lift the brightest one).
+// squares (a twentieth of the detector's width, inset by a fiftieth) of the
+// noise-free shot, the brightest, if its mean is within 2 % of the
+// brightest pixel's (the open beam).
 PixelRect openCorner(const Image& image, const std::string& view) {
   const int side = std::max(8, image.width() / 20), inset = std::max(2, image.width() / 50);
-  std::vector<float> values(image.pixels().begin(), image.pixels().end());
-  const auto at = values.begin() + static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(values.size() - 1));
-  std::nth_element(values.begin(), at, values.end());
-  const double open = *at;
+  float brightest = 0.0f;
+  for (float v : image.pixels()) brightest = std::max(brightest, v);
   const int xs[2] = {inset, image.width() - inset - side};
   const int ys[2] = {inset, image.height() - inset - side};
   PixelRect best;
@@ -66,7 +64,7 @@ PixelRect openCorner(const Image& image, const std::string& view) {
       const double mean = sum / static_cast<double>(r.area());
       if (mean > best_mean) best_mean = mean, best = r;
     }
-  if (!(best_mean >= 0.98 * open))
+  if (!(best_mean >= 0.98 * static_cast<double>(brightest)))
     fail("view {}: no corner of the detector sees the open beam (the white region needs one): "
          "the part's shadow reaches every corner",
          view);
@@ -145,6 +143,8 @@ SimulatedView simulateView(const PlanJob& job, int view) {
                v.name, machine.columns, machine.rows, p.x(), p.y());
     image = simulatedShot(model, theta, 0);
   }
+  SimulatedView out;
+  out.white_region = openCorner(image, v.name);
   // The shot's noise, photon-limited with a floor; a stream per row (lab/random.h).
   for (int y = 0; y < image.height(); ++y) {
     SplitMix64 stream = SplitMix64::stream(job.seed, kNoisePurpose, static_cast<uint64_t>(view),
@@ -158,8 +158,6 @@ SimulatedView simulateView(const PlanJob& job, int view) {
       row[x] = static_cast<float>(i + sigma * normal(stream));
     }
   }
-  SimulatedView out;
-  out.white_region = openCorner(image, v.name);
   RadiographSpec spec;
   spec.name = v.name;
   spec.image = v.name + ".tif";

@@ -5,6 +5,8 @@
 #include "xgauge/lab/random.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
+#include <tbb/parallel_for.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -320,13 +322,17 @@ double criterionOf(const PlanJob& job, const std::vector<PredictedDimension>& di
 PlanResult planViews(const PlanJob& job) {
   const auto start = std::chrono::steady_clock::now();
   PlanResult result;
-  std::vector<pi::SimulatedView> views;
+  // Each view on its own core (a render's rows are parallel too, but its
+  // Jacobian's columns and the influences' renders are small at 1024^2);
+  // each view's noise is its own stream, so the result does not depend on
+  // the thread count.
+  std::vector<pi::SimulatedView> views(job.views.size());
   {
     ProgressBar bar("plan: simulating the views", static_cast<int64_t>(job.views.size()));
-    for (int v = 0; v < static_cast<int>(job.views.size()); ++v) {
-      views.push_back(pi::simulateView(job, v));
+    tbb::parallel_for(0, static_cast<int>(job.views.size()), [&](int v) {
+      views[static_cast<size_t>(v)] = pi::simulateView(job, v);
       bar.advance();
-    }
+    });
   }
   for (const auto& v : views) {
     result.view_images.push_back(v.image);

@@ -334,6 +334,11 @@ PlanResult planViews(const PlanJob& job) {
       bar.advance();
     });
   }
+  const auto since = [](std::chrono::steady_clock::time_point t) {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+  };
+  result.views_seconds = since(start);
+  const auto screening_start = std::chrono::steady_clock::now();
   for (const auto& v : views) {
     result.view_images.push_back(v.image);
     result.white_regions.push_back(v.white_region);
@@ -374,25 +379,29 @@ PlanResult planViews(const PlanJob& job) {
   }
   std::stable_sort(ranked.begin(), ranked.end(),
                    [](const PredictedSet& a, const PredictedSet& b) { return a.score < b.score; });
+  result.screening_seconds = since(screening_start);
+  const auto budget_start = std::chrono::steady_clock::now();
   // The best screened sets and the compared ones get the measurement's budget.
   const int budgeted = std::min(job.budgeted, static_cast<int>(ranked.size()));
   {
+    // One set per core, as the views.
     ProgressBar bar("plan: budgets of the best sets",
                     budgeted + static_cast<int64_t>(job.compare.size()));
-    for (int k = 0; k < budgeted; ++k) {
-      ranked[static_cast<size_t>(k)] = budgetSet(job, views, ranked[static_cast<size_t>(k)].views);
+    result.compared.resize(job.compare.size());
+    tbb::parallel_for(0, budgeted + static_cast<int>(job.compare.size()), [&](int k) {
+      if (k < budgeted)
+        ranked[static_cast<size_t>(k)] = budgetSet(job, views, ranked[static_cast<size_t>(k)].views);
+      else
+        result.compared[static_cast<size_t>(k - budgeted)] =
+            budgetSet(job, views, job.compare[static_cast<size_t>(k - budgeted)]);
       bar.advance();
-    }
-    for (const std::vector<int>& set : job.compare) {
-      std::vector<int> sorted = set;
-      result.compared.push_back(budgetSet(job, views, sorted));
-      bar.advance();
-    }
+    });
   }
   std::stable_sort(ranked.begin(), ranked.begin() + budgeted,
                    [](const PredictedSet& a, const PredictedSet& b) { return a.score < b.score; });
   result.ranked = std::move(ranked);
-  result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  result.budget_seconds = since(budget_start);
+  result.seconds = since(start);
   spdlog::info("plan: {} candidate views, {}; {} budgeted, in {:.1f} s", n, result.search,
                budgeted + job.compare.size(), result.seconds);
   return result;

@@ -104,7 +104,8 @@ struct PlanResult {
   std::vector<PredictedSet> compared;  // the job's compare sets, budgeted
   std::vector<Image> view_images;      // each view's simulated radiograph (full size)
   std::vector<PixelRect> white_regions;  // each view's open-beam corner
-  double seconds = 0.0;
+  double seconds = 0.0;  // in all; of it:
+  double views_seconds = 0.0, screening_seconds = 0.0, budget_seconds = 0.0;
 };
 
 // Screens the candidate sets, budgets the best and the compared ones.

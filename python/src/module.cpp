@@ -33,6 +33,7 @@
 #include "xgauge/report/calibration.h"
 #include "xgauge/report/measurement.h"
 #include "xgauge/version.h"
+#include "xgauge/xgauge.h"
 #include "xgauge/xray/derivatives.h"
 #include "xgauge/xray/machine.h"
 #include "xgauge/xray/renderer.h"
@@ -511,9 +512,23 @@ PYBIND11_MODULE(_xgauge, m) {
   m.def("render", &render, py::arg("part"), py::arg("dimensions"), py::arg("pose"),
         py::arg("machine"), py::arg("material"), py::arg("samples"), py::arg("edge_samples"),
         py::arg("region"), py::arg("derivatives"), py::arg("float64"), py::arg("base_dir"));
-  m.def("calibrate", &calibrate, py::arg("kind"), py::arg("job"), py::arg("output"),
+  m.def("calibrate", &xgauge::python::calibrate, py::arg("kind"), py::arg("job"), py::arg("output"),
         py::arg("report"), py::arg("truth"), py::arg("progress"));
   m.def("simulate", &simulate, py::arg("recipe"), py::arg("output"), py::arg("progress"));
+  m.def(
+      "plan",
+      [](const fs::path& job, const fs::path& output) {
+        PlanSummary summary;
+        {
+          py::gil_scoped_release release;
+          summary = xgauge::plan({job, output});
+        }
+        if (summary.termination != RunTermination::kDone) throw Error(summary.message);
+        return summary.report;
+      },
+      py::arg("job"), py::arg("output"),
+      "The front door's view plan (xgauge/xgauge.h): plan.json, job.json and report.html into "
+      "`output`; returns the table `xgauge plan` prints");
 
   py::class_<Measurement>(m, "Measurement")
       .def("to_json",

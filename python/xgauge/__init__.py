@@ -16,7 +16,8 @@ from ._xgauge import (Error, Measurement, __version__, read_radiograph, read_tif
 from . import _xgauge
 
 __all__ = ["Error", "Measurement", "MeasurementSummary", "Rendering", "__version__", "calibrate",
-           "measure", "read_radiograph", "read_tiff", "render", "set_log_level", "simulate", "write_tiff"]
+           "measure", "plan", "read_radiograph", "read_tiff", "render", "set_log_level", "simulate",
+           "write_tiff"]
 
 
 class Rendering:
@@ -151,6 +152,21 @@ def calibrate(kind, job, output, *, report=True, truth=None, progress=None):
     with open(os.path.join(output, "calibration.json")) as file:
         calibration = json.load(file)
     return {"material": material, "calibration": calibration}
+
+
+def plan(job, output):
+    """Plans the views as `xgauge plan JOB -o OUTPUT` does: every set of the
+    plan job's candidate views predicted and ranked (docs/method.md,
+    "Planning the views"); plan.json, job.json (the best set's measurement
+    job) and report.html written into `output`. Returns plan.json's contents
+    with "table": what `xgauge plan` prints. A bad plan raises xgauge.Error
+    naming the file and key, with nothing written. The GIL is released
+    while planning."""
+    table = _xgauge.plan(os.fspath(job), os.fspath(output))
+    with open(os.path.join(output, "plan.json")) as file:
+        result = json.load(file)
+    result["table"] = table
+    return result
 
 
 def simulate(recipe, output, *, progress=None):

@@ -41,6 +41,7 @@ RULES = [
     ("examples", "aluminium_*.json", "material"),
     ("examples", "material_*.json", "material"),
     ("examples", "*_job.json", "job"),
+    ("examples", "view_plan_*.json", "view_plan"),
     ("examples", "*_plan.json", "plan"),
     ("examples", "calibrate_wedge*.json", "calibrate_wedge"),
     ("examples", "characterize_*.json", "characterize"),

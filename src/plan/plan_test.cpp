@@ -168,7 +168,7 @@ TEST_F(PlanViews, TheBudgetedSetsLeadTheRankingAndNoComparedSetBeatsThem) {
 // Prism A at 128^2 (1.6 mm pixels) on a curve known to 0.3 %: the face-on
 // pair, 15 mm apart, sees the thickness along the beam only through the
 // curve; the plan's best pair turns the jaw and sees it across (xgauge
-// plan examples/plan_prism_a_small.json gives the same at 1024^2).
+// plan examples/view_plan_prism_a_small.json gives the same at 1024^2).
 TEST_F(PlanViews, ThePlansBestPairBeatsTheFaceOnPairWhereTheDepthIsToleranced) {
   Machine machine;
   machine.source_detector_distance_mm = 1000.0;

@@ -208,6 +208,56 @@ TEST_F(PlanViews, ThePlansBestPairBeatsTheFaceOnPairWhereTheDepthIsToleranced) {
   EXPECT_LT(2.0 * thickness(best), thickness(face_on));
 }
 
+// The wedge block with its eight edges free: measured from a centre line
+// the part does not show, the pocket's edges move with the part's pose and
+// are not determined (the walls are: their width shows). The plan says so
+// for a translated pair, and so does the measurement of shots rendered
+// apart from the planner.
+TEST_F(PlanViews, WhatThePlanCannotDetermineTheMeasurementCannotEither) {
+  Machine machine;
+  machine.source_detector_distance_mm = 1000.0;
+  machine.columns = machine.rows = 128;
+  machine.pitch_u_mm = machine.pitch_v_mm = 3.2;
+  machine.cx_px = machine.cy_px = 64.0;
+  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+  const PlanJob plan = PlanJob::load(writePlan([](nlohmann::json& p) {
+    nlohmann::json& job = p["job"];
+    job["part"] = kRoot + "/parts/wedge_block.json";
+    job["dimensions"] = nlohmann::json::parse(
+        R"({"free": ["pocket_left_top", "pocket_right_top", "wall_left_top", "wall_right_top",
+                     "pocket_left_mid", "pocket_right_mid", "wall_left_mid", "wall_right_mid"]})");
+    job.erase("tolerances");
+    job["pose_bounds"] = nlohmann::json::parse(
+        R"({"rotation_deg": [[-5, 5], [-10, 40], [-5, 5]], "centre_mm": [[-30, 30], [-20, 20], [600, 800]]})");
+    p["criterion"] = {{"dimension", "wall_left_top"}};
+    p["views"] = nlohmann::json::parse(
+        R"({"centre_mm": [0, 0, 700], "rotations_deg": [[0, 0, 0], [0, 30, 0]],
+            "stage": {"axis": [1, 0, 0], "positions_mm": [0, 12]}})");
+    p["budgeted"] = 1;
+  }));
+  const PlanResult result = planViews(plan);
+  const PredictedSet& pair = result.compared.at(0);
+  std::map<std::string, bool> planned;
+  for (const PredictedDimension& d : pair.dimensions) planned[d.name] = d.identifiable;
+  EXPECT_FALSE(planned.at("pocket_left_top"));
+  EXPECT_TRUE(planned.at("wall_left_top"));
+  nlohmann::json job = measurementJobFor(plan, result, pair.views);
+  for (auto& r : job["radiographs"]) {
+    const std::string name = r["name"];
+    const int v = name == "v00" ? 0 : 1;
+    const fs::path image = dir_ / (name + ".tif");
+    writeShot(image, plan, plan.views[static_cast<size_t>(v)].pose, 7 + v);
+    r["image"] = image.string();
+  }
+  std::ofstream(dir_ / "job.json") << job.dump(2);
+  const MeasurementInputs inputs = loadMeasurementInputs(dir_ / "job.json");
+  ForwardModel model(inputs);
+  const MeasurementResult measured = measure(model, model.start());
+  ASSERT_EQ(measured.uncertainty.dimensions.size(), planned.size());
+  for (const DimensionUncertainty& d : measured.uncertainty.dimensions)
+    EXPECT_EQ(d.identifiable, planned.at(d.name)) << d.name;
+}
+
 TEST_F(PlanViews, BadPlansAreRefusedNamingTheKey) {
   const auto refused = [&](const std::function<void(nlohmann::json&)>& change,
                            const std::string& expected) {

@@ -32,6 +32,9 @@ nlohmann::json setJson(const PlanJob& job, const PlanResult& result, const Predi
     }
     dims[d.name] = std::move(e);
   }
+  for (const PredictedDimension& d : set.screened)
+    if (dims.contains(d.name))
+      dims[d.name]["screened_expanded_uncertainty"] = d.identifiable ? finite(d.expanded) : nullptr;
   nlohmann::json out = {{"views", views},
                         {"patterns", set.patterns},
                         {"score", finite(set.score)},
@@ -76,7 +79,7 @@ nlohmann::json planJson(const PlanJob& job, const PlanResult& result) {
                                {"translation_mm", {c[0], c[1], c[2]}}}}});
   }
   nlohmann::json ranked = nlohmann::json::array(), compared = nlohmann::json::array();
-  constexpr size_t kListed = 50;
+  constexpr size_t kListed = 500;  // sets listed in plan.json, best first
   for (size_t k = 0; k < result.ranked.size() && k < kListed; ++k)
     ranked.push_back(setJson(job, result, result.ranked[k]));
   for (const PredictedSet& s : result.compared) compared.push_back(setJson(job, result, s));

@@ -389,11 +389,17 @@ PlanResult planViews(const PlanJob& job) {
                     budgeted + static_cast<int64_t>(job.compare.size()));
     result.compared.resize(job.compare.size());
     tbb::parallel_for(0, budgeted + static_cast<int>(job.compare.size()), [&](int k) {
-      if (k < budgeted)
-        ranked[static_cast<size_t>(k)] = budgetSet(job, views, ranked[static_cast<size_t>(k)].views);
-      else
-        result.compared[static_cast<size_t>(k - budgeted)] =
-            budgetSet(job, views, job.compare[static_cast<size_t>(k - budgeted)]);
+      if (k < budgeted) {
+        PredictedSet& set = ranked[static_cast<size_t>(k)];
+        std::vector<PredictedDimension> screened_dimensions = std::move(set.dimensions);
+        set = budgetSet(job, views, set.views);
+        set.screened = std::move(screened_dimensions);
+      } else {
+        const std::vector<int>& views_of = job.compare[static_cast<size_t>(k - budgeted)];
+        PredictedSet& set = result.compared[static_cast<size_t>(k - budgeted)];
+        set = budgetSet(job, views, views_of);
+        set.screened = screening.predict(views_of);
+      }
       bar.advance();
     });
   }

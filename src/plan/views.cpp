@@ -79,10 +79,11 @@ Relation relationOf(const PlanJob& job, int first, int view) {
   Relation out;
   const bool same_fixture = a.rotation_deg == b.rotation_deg;
   if (same_fixture && a.turntable_deg == b.turntable_deg && a.stage_mm != b.stage_mm) {
-    const Vec3 move = b.pose.translation_mm - a.pose.translation_mm;
+    // The stage's own move: its distance as the positions state it (not the
+    // poses' difference, which rounds), along its axis.
     out.pattern = Acquisition::kTranslated;
-    out.distance_mm = move.norm();
-    out.direction = move / out.distance_mm;
+    out.distance_mm = std::abs(b.stage_mm - a.stage_mm);
+    out.direction = (b.stage_mm > a.stage_mm ? 1.0 : -1.0) * job.stage_axis;
   } else if (same_fixture && a.stage_mm == b.stage_mm && a.turntable_deg != b.turntable_deg) {
     out.pattern = Acquisition::kTurned;
     out.angle_deg = b.turntable_deg - a.turntable_deg;

@@ -39,31 +39,43 @@ constexpr double kNullRatio = 1e-9;  // eigenvalue of the scaled normal matrix b
 // are none or the velocities cannot be evaluated.
 Eigen::MatrixXd geometricNullSpace(ForwardModel& model, std::span<const double> theta,
                                    std::span<const int> indices, std::span<const int> radiographs) {
+  Eigen::MatrixXd normal;
+  if (!vertexNormalMatrix(model, theta, indices, radiographs, normal)) return {};
+  return nullSpaceOfVertexNormal(normal);
+}
+
+}  // namespace
+
+bool vertexNormalMatrix(ForwardModel& model, std::span<const double> theta,
+                        std::span<const int> indices, std::span<const int> radiographs,
+                        Eigen::MatrixXd& normal) {
   const auto n = static_cast<Eigen::Index>(indices.size());
   const auto vertices = static_cast<Eigen::Index>(model.part().vertexCount());
-  Eigen::MatrixXd normal = Eigen::MatrixXd::Zero(n, n);  // M^T M of the stacked velocities
+  normal = Eigen::MatrixXd::Zero(n, n);  // M^T M of the stacked velocities
   std::vector<int> moving;
   std::vector<Vec3> velocities;
-  std::vector<bool> geometric(indices.size(), false);
   for (int r : radiographs) {
-    if (!model.poseVelocities(theta, indices, r, moving, velocities)) return {};
+    if (!model.poseVelocities(theta, indices, r, moving, velocities)) return false;
     Eigen::MatrixXd m(3 * vertices, static_cast<Eigen::Index>(moving.size()));
-    for (size_t k = 0; k < moving.size(); ++k) {
-      geometric[static_cast<size_t>(moving[k])] = true;
+    for (size_t k = 0; k < moving.size(); ++k)
       for (Eigen::Index v = 0; v < vertices; ++v)
         m.block<3, 1>(3 * v, static_cast<Eigen::Index>(k)) =
             velocities[k * static_cast<size_t>(vertices) + static_cast<size_t>(v)];
-    }
     const Eigen::MatrixXd mm = m.transpose() * m;
     for (size_t i = 0; i < moving.size(); ++i)
       for (size_t j = 0; j < moving.size(); ++j)
         normal(moving[i], moving[j]) +=
             mm(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(j));
   }
+  return true;
+}
+
+Eigen::MatrixXd nullSpaceOfVertexNormal(const Eigen::MatrixXd& normal) {
+  const Eigen::Index n = normal.rows();
   // Over the parameters that move something, scaled to a unit diagonal.
   std::vector<Eigen::Index> cols;
   for (Eigen::Index k = 0; k < n; ++k)
-    if (geometric[static_cast<size_t>(k)] && normal(k, k) > 0.0) cols.push_back(k);
+    if (normal(k, k) > 0.0) cols.push_back(k);
   const auto g = static_cast<Eigen::Index>(cols.size());
   if (g == 0) return {};
   Eigen::MatrixXd scaled(g, g);
@@ -86,8 +98,6 @@ Eigen::MatrixXd geometricNullSpace(ForwardModel& model, std::span<const double> 
   return Eigen::HouseholderQR<Eigen::MatrixXd>(basis).householderQ() *
          Eigen::MatrixXd::Identity(n, basis.cols());
 }
-
-}  // namespace
 
 // The pseudo-inverse of the symmetric positive semi-definite A, scaled to a
 // unit diagonal first so that millimetres and degrees compare; `null` gets

@@ -41,6 +41,20 @@ std::vector<int> fitRadiographs(const LinearizedFit& fit);
 // the directions (in unscaled parameters) it drops.
 Eigen::MatrixXd pseudoInverse(const Eigen::MatrixXd& a, std::vector<Eigen::VectorXd>& null);
 
+// M^T M of the posed part's vertex velocities d(world vertices)/d theta
+// [indices], stacked over `radiographs` (exact, from the part model and the
+// poses; zero rows for parameters that move no vertex); false where they
+// cannot be evaluated.
+bool vertexNormalMatrix(ForwardModel& model, std::span<const double> theta,
+                        std::span<const int> indices, std::span<const int> radiographs,
+                        Eigen::MatrixXd& normal);
+
+// The directions along which no vertex moves: eigenvectors of the
+// vertex-velocity normal matrix (scaled to a unit diagonal over the
+// parameters that move something) below 1e-10 of its largest eigenvalue,
+// as orthonormal columns in the parameters' own units; empty for none.
+Eigen::MatrixXd nullSpaceOfVertexNormal(const Eigen::MatrixXd& normal);
+
 // A = J^T W J of the fit, with the refinement's prior; `w` its weights.
 Eigen::MatrixXd normalMatrix(const LinearizedFit& fit, const Eigen::VectorXd& w);
 

@@ -57,6 +57,9 @@ std::optional<ViewInformation> viewInformationAt(ForwardModel& model,
   out.a = bi::normalMatrix(*fit, w);
   out.b = bi::scoreMatrix(*fit, w);
   out.pixels = fit->residuals.size();
+  const std::vector<int> only{0};
+  if (!bi::vertexNormalMatrix(model, theta, fit->indices, only, out.vertex_normal))
+    out.vertex_normal = Eigen::MatrixXd::Zero(out.a.rows(), out.a.cols());
   if (fit->prior) {
     out.prior_lambda = fit->prior->lambda;
     // normalMatrix adds the prior's row; a set adds it once, not per view.
@@ -86,6 +89,7 @@ std::optional<ViewInformation> viewInformationAt(ForwardModel& model,
         Eigen::Map<const Eigen::VectorXd>(r.data(), fit->residuals.size()) - fit->residuals;
     columns.push_back(fit->jacobian.transpose() * w.cwiseProduct(dr));
     out.influences.push_back(move.influence.name);
+    out.iterated.push_back(move.how != bi::Propagation::kLinearised);
   }
   out.g.resize(static_cast<Eigen::Index>(out.names.size()),
                static_cast<Eigen::Index>(columns.size()));
@@ -99,6 +103,10 @@ namespace xgauge {
 
 Eigen::MatrixXd budgetPseudoInverse(const Eigen::MatrixXd& a, std::vector<Eigen::VectorXd>& null) {
   return budget_internal::pseudoInverse(a, null);
+}
+
+Eigen::MatrixXd budgetGeometricNullSpace(const Eigen::MatrixXd& vertex_normal) {
+  return budget_internal::nullSpaceOfVertexNormal(vertex_normal);
 }
 
 }  // namespace xgauge

@@ -40,8 +40,16 @@ struct ViewInformation {
   Eigen::MatrixXd a, b;
   Eigen::Index pixels = 0;
   std::vector<std::string> influences;  // names, as the budget's components
+  // Per influence: whether the budget does not take it linearised (the
+  // geometry's, which the poses absorb along weakly determined directions
+  // that one linearised step overshoots: budget_propagation.cpp).
+  std::vector<bool> iterated;
   Eigen::MatrixXd g;                    // one column per influence
   double prior_lambda = 0.0;            // the refinement's prior (0: none)
+  // M^T M of the posed part's vertex velocities over the columns: a set's
+  // directions that move no vertex in any view are its null space (the
+  // budget's geometric null space).
+  Eigen::MatrixXd vertex_normal;
 };
 std::optional<ViewInformation> viewInformationAt(ForwardModel& model,
                                                  std::span<const double> theta);
@@ -55,5 +63,10 @@ namespace xgauge {
 // directions, which make a dimension with a share of 1e-3 or more in one of
 // them not identifiable.
 Eigen::MatrixXd budgetPseudoInverse(const Eigen::MatrixXd& a, std::vector<Eigen::VectorXd>& null);
+
+// The budget's directions that move no vertex, from a vertex-velocity normal
+// matrix (ViewInformation::vertex_normal added up): orthonormal columns;
+// empty for none. The budget projects them out of A, B and every shift.
+Eigen::MatrixXd budgetGeometricNullSpace(const Eigen::MatrixXd& vertex_normal);
 
 }  // namespace xgauge

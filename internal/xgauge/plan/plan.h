@@ -68,7 +68,7 @@ struct PlanJob {
   int per_set = 2;
   PlanCriterion criterion = PlanCriterion::kWorst;
   std::string criterion_dimension;
-  int budgeted = 5;  // best screened sets given the budget
+  int budgeted = 8;  // best screened sets given the budget
   // Sets always given the budget and shown beside the best (the lab's usual
   // pair, say): indices into views.
   std::vector<std::vector<int>> compare;
@@ -95,6 +95,7 @@ struct PredictedSet {
   double score = 0.0;  // the criterion (lower is better; +inf: not every dimension determined)
   bool budgeted = false;
   std::optional<UncertaintyBudget> budget;  // when budgeted
+  std::vector<PredictedDimension> screened;  // a budgeted set's screening, for comparison
 };
 
 struct PlanResult {

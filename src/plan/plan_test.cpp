@@ -37,12 +37,7 @@ class PlanViews : public ::testing::Test {
            ("xgauge_plan_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
     fs::remove_all(dir_);
     fs::create_directories(dir_);
-    Machine machine;
-    machine.source_detector_distance_mm = 1000.0;
-    machine.columns = machine.rows = 96;
-    machine.pitch_u_mm = machine.pitch_v_mm = 0.8;
-    machine.cx_px = machine.cy_px = 48.0;
-    std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+    writeMachine(96, 0.8);
     ExponentialSum material({{0.6, 0.03}, {0.3, 0.07}, {0.1, 0.25}});
     // A curve known to 1 %: a face-on view's depth, seen only through
     // the intensity, is then as uncertain as the tolerance.
@@ -51,6 +46,16 @@ class PlanViews : public ::testing::Test {
     std::ofstream(dir_ / "material.json") << curve.dump();
   }
   void TearDown() override { fs::remove_all(dir_); }
+
+  // machine.json: a square panel of `pixels` of `pitch_mm`, 1000 mm from the source.
+  void writeMachine(int pixels, double pitch_mm) {
+    Machine machine;
+    machine.source_detector_distance_mm = 1000.0;
+    machine.columns = machine.rows = pixels;
+    machine.pitch_u_mm = machine.pitch_v_mm = pitch_mm;
+    machine.cx_px = machine.cy_px = 0.5 * pixels;
+    std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+  }
 
   // A plan of the cuboid: three fixture rotations about the vertical, two
   // stage positions 12 mm apart; `change` edits the plan's JSON.
@@ -170,12 +175,7 @@ TEST_F(PlanViews, TheBudgetedSetsLeadTheRankingAndNoComparedSetBeatsThem) {
 // curve; the plan's best pair turns the jaw and sees it across (xgauge
 // plan examples/view_plan_prism_a_small.json gives the same at 1024^2).
 TEST_F(PlanViews, ThePlansBestPairBeatsTheFaceOnPairWhereTheDepthIsToleranced) {
-  Machine machine;
-  machine.source_detector_distance_mm = 1000.0;
-  machine.columns = machine.rows = 128;
-  machine.pitch_u_mm = machine.pitch_v_mm = 1.6;
-  machine.cx_px = machine.cy_px = 64.0;
-  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+  writeMachine(128, 1.6);
   const PlanJob plan = PlanJob::load(writePlan([](nlohmann::json& p) {
     nlohmann::json& job = p["job"];
     job["part"] = kRoot + "/parts/prism_jaw.json";
@@ -214,12 +214,7 @@ TEST_F(PlanViews, ThePlansBestPairBeatsTheFaceOnPairWhereTheDepthIsToleranced) {
 // for a translated pair, and so does the measurement of shots rendered
 // apart from the planner.
 TEST_F(PlanViews, WhatThePlanCannotDetermineTheMeasurementCannotEither) {
-  Machine machine;
-  machine.source_detector_distance_mm = 1000.0;
-  machine.columns = machine.rows = 128;
-  machine.pitch_u_mm = machine.pitch_v_mm = 3.2;
-  machine.cx_px = machine.cy_px = 64.0;
-  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+  writeMachine(128, 3.2);
   const PlanJob plan = PlanJob::load(writePlan([](nlohmann::json& p) {
     nlohmann::json& job = p["job"];
     job["part"] = kRoot + "/parts/wedge_block.json";

@@ -253,6 +253,25 @@ TEST_F(PlanViews, WhatThePlanCannotDetermineTheMeasurementCannotEither) {
     EXPECT_EQ(d.identifiable, planned.at(d.name)) << d.name;
 }
 
+// Where the grid is too large to screen every set, local exchange from
+// seeded starts finds the best set every set's screening finds, on a grid
+// small enough to check.
+TEST_F(PlanViews, LocalExchangeFindsWhatScreeningEverySetFinds) {
+  const PlanResult every = planViews(PlanJob::load(writePlan([](nlohmann::json& p) {
+    p["radiographs"] = 3;
+    p.erase("compare");
+  })));
+  const PlanResult exchanged = planViews(PlanJob::load(writePlan([](nlohmann::json& p) {
+    p["radiographs"] = 3;
+    p.erase("compare");
+    p["exhaustive_up_to"] = 4;
+  })));
+  EXPECT_EQ(every.screened, 20);
+  EXPECT_NE(exchanged.search.find("local exchange"), std::string::npos) << exchanged.search;
+  EXPECT_EQ(exchanged.ranked.front().views, every.ranked.front().views);
+  EXPECT_DOUBLE_EQ(exchanged.ranked.front().score, every.ranked.front().score);
+}
+
 TEST_F(PlanViews, BadPlansAreRefusedNamingTheKey) {
   const auto refused = [&](const std::function<void(nlohmann::json&)>& change,
                            const std::string& expected) {

@@ -24,9 +24,8 @@ namespace {
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 constexpr double kDegToRadPlan = 3.14159265358979323846 / 180.0;
-// Every combination is screened up to this many; beyond, local exchange from
-// seeded starts (kStarts of them).
-constexpr int64_t kExhaustive = 20000;
+// Beyond PlanJob::exhaustive_up_to sets, local exchange from this many
+// seeded starts.
 constexpr int kStarts = 64;
 constexpr double kPoseStep = 1e-5;  // deg or mm: the chain rule's central differences
 
@@ -398,7 +397,7 @@ PlanResult planViews(const PlanJob& job) {
   Screened screened;
   const int n = static_cast<int>(job.views.size());
   const int64_t all = combinations(n, job.per_set);
-  if (all <= kExhaustive) {
+  if (all <= job.exhaustive_up_to) {
     forEachCombination(n, job.per_set, [&](const std::vector<int>& set) {
       screened.sets[set] = screening.predict(set);
     });
@@ -409,7 +408,8 @@ PlanResult planViews(const PlanJob& job) {
     // exchanging one view at a time.
     std::vector<std::vector<int>> starts = job.compare;
     SplitMix64 stream = SplitMix64::stream(job.seed, 0x706c616e73746172ULL);
-    while (static_cast<int>(starts.size()) < kStarts) {
+    const int64_t starts_wanted = std::min<int64_t>(kStarts, all);
+    while (static_cast<int64_t>(starts.size()) < starts_wanted) {
       std::set<int> s;
       while (static_cast<int>(s.size()) < job.per_set) s.insert(static_cast<int>(stream() % static_cast<uint64_t>(n)));
       starts.emplace_back(s.begin(), s.end());

@@ -69,6 +69,9 @@ struct PlanJob {
   PlanCriterion criterion = PlanCriterion::kWorst;
   std::string criterion_dimension;
   int budgeted = 8;  // best screened sets given the budget
+  // Every set is screened up to this many; beyond, local exchange from
+  // seeded starts.
+  int64_t exhaustive_up_to = 20000;
   // Sets always given the budget and shown beside the best (the lab's usual
   // pair, say): indices into views.
   std::vector<std::vector<int>> compare;

@@ -48,7 +48,20 @@ def main(argv=None):
     s.add_argument("--set", action="append", default=[], help="name=value")
     s.add_argument("--lattice", type=int, default=233)
     s.add_argument("-o", "--output", required=True)
+    s = sub.add_parser("shots", help="shots of a measured part at given poses on a machine folder (written by "
+                                     "`machine`), with the machine's full detector model, as an xgauge dataset")
+    s.add_argument("machine_dir", help="a machine folder (lab2_machine.json, dark.tif, flat.tif)")
+    s.add_argument("--part", required=True, help=f"the measured part ({', '.join(KINDS)})")
+    s.add_argument("--poses", required=True, help='JSON: [{"name", "pose": {"rotation_deg", "translation_mm"}, '
+                                                  '"rest"?}, ...] (or {"shots": [...]}), in exposure order')
+    s.add_argument("-o", "--output", required=True, help="the dataset folder (created)")
+    s.add_argument("--seed", type=int, required=True, help="the shots' noise (and a drawn specimen's) seed")
+    s.add_argument("--specimen", default="draw", help="draw (lab2's usual drift and imperfections, from --seed; "
+                                                      "default), nominal (the model, no imperfection), or a JSON "
+                                                      "file with dimensions and imperfections")
     a = ap.parse_args(argv)
+    if a.cmd == "shots":
+        return _shots(a)
     if a.cmd == "list":
         for m in grid.MACHINES:
             g = m["geometry"]
@@ -114,6 +127,23 @@ def _parts_args(s):
     s.add_argument("--masters", type=int, default=3, help="master shot sets per part (default 3)")
     s.add_argument("--master-specimens", type=int, default=1, help="master specimens per part, each drawn on its "
                                                                   "own with --masters shot sets (default 1)")
+
+
+def _shots(a):
+    from . import shots
+    if a.part not in KINDS:
+        print(f"lab2: error: unknown part {a.part!r} (known: {', '.join(KINDS)})", file=sys.stderr)
+        return 2
+    try:
+        poses = shots.read_poses(a.poses)
+        info = shots.run(a.machine_dir, a.part, poses, a.output, a.seed, how=a.specimen,
+                         log=lambda msg: print(msg, file=sys.stderr, flush=True))
+    except (OSError, ValueError, KeyError, ScrewBuilderError) as e:
+        print(f"lab2: error: {e}", file=sys.stderr)
+        return 1
+    print(f"{a.output}: {len(poses)} shots of the {a.part} ({info['specimen']}) on {info['machine_id']} in "
+          f"{info['seconds']} s")
+    return 0
 
 
 def _render(a):

@@ -21,8 +21,9 @@ std::string planTable(const PlanJob& job, const PlanResult& result) {
     for (size_t k = 0; k < set.views.size(); ++k)
       views += fmt::format("{}{}:{}", k ? " " : "", job.views[static_cast<size_t>(set.views[k])].name,
                            set.patterns[k]);
+    const std::string score = std::isfinite(set.score) ? fmt::format("{:.4f}", set.score) : "-";
     std::string line = fmt::format("{:<9} {:<36} {:>9}", label, views,
-                                   std::isfinite(set.score) ? fmt::format("{:.4f}", set.score) : "-");
+                                   set.complete() ? score : score + "*");
     for (const PredictedDimension& d : set.dimensions)
       line += d.identifiable ? fmt::format(" {:>10.4f}", d.expanded) : fmt::format(" {:>10}", "-");
     return line + "\n";
@@ -37,6 +38,12 @@ std::string planTable(const PlanJob& job, const PlanResult& result) {
   for (const PredictedSet& s : result.compared) table += row("compared", s);
   table += fmt::format("U (k = 2) predicted by the measurement's budget at the nominal part; {}.\n",
                        result.search);
+  bool incomplete = false;
+  for (const PredictedSet& s : result.ranked) incomplete |= s.budgeted && !s.complete();
+  if (incomplete)
+    table +=
+        "*: its budget left an influence out (its shift did not settle): that U is too small, "
+        "and the set ranks after every complete one (plan.json: \"unpropagated\").\n";
   return table;
 }
 

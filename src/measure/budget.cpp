@@ -148,7 +148,8 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
                              model.job().loss == LossKind::kMeanAbsolute,
                              bi::reSolveJacobian(model)};
   const std::vector<bi::InfluenceMove> moves = bi::listInfluences(model, fit.level, at.level);
-  const std::vector<Influence> influences = bi::propagateInfluences(at, moves, budget.notes);
+  const std::vector<Influence> influences =
+      bi::propagateInfluences(at, moves, budget.notes, budget.unpropagated);
 
   // The total covariance (with the facets' share of each length dimension,
   // independent from one dimension to another) and each free dimension's

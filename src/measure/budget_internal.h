@@ -127,9 +127,11 @@ struct FitAtSolution {
 // Each influence of `moves` with its shift, in their order; a note in
 // `notes` for each one left out (a `left_out` entry, or a propagation that
 // failed).
+// `failed` gets the names of the influences whose propagation failed.
 std::vector<Influence> propagateInfluences(const FitAtSolution& at,
                                            const std::vector<InfluenceMove>& moves,
-                                           std::vector<std::string>& notes);
+                                           std::vector<std::string>& notes,
+                                           std::vector<std::string>& failed);
 
 // The combinations (budget_combinations.cpp) ---------------------------------
 

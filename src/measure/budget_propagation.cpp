@@ -273,7 +273,8 @@ JacobianKind reSolveJacobian(const ForwardModel& model) {
 
 std::vector<Influence> propagateInfluences(const FitAtSolution& ctx,
                                            const std::vector<InfluenceMove>& moves,
-                                           std::vector<std::string>& notes) {
+                                           std::vector<std::string>& notes,
+                                           std::vector<std::string>& failed) {
   UnmovedModel unmoved;
   unmoved.iterates.emplace_back(ctx.theta.begin(), ctx.theta.end());
   std::vector<Influence> influences;
@@ -293,6 +294,8 @@ std::vector<Influence> propagateInfluences(const FitAtSolution& ctx,
     moved.setEdgeSamples(ctx.model.edgeSamples());
     if (auto influence = propagateInfluence(ctx, unmoved, moved, move.influence, move.how, notes))
       influences.push_back(std::move(*influence));
+    else
+      failed.push_back(move.influence.name);
   }
   return influences;
 }

@@ -8,6 +8,7 @@
 #include "xgauge/report/html.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <cmath>
 
@@ -50,6 +51,8 @@ nlohmann::json setJson(const PlanJob& job, const PlanResult& result, const Predi
     }
     out["components"] = std::move(components);
     out["notes"] = set.budget->notes;
+    out["complete"] = set.complete();
+    out["unpropagated"] = set.budget->unpropagated;
     out["job"] = measurementJobOf(job, result, set.views);
   }
   return out;
@@ -102,9 +105,14 @@ std::string setRow(const PlanJob& job, const PredictedSet& set, const std::strin
   for (size_t k = 0; k < set.views.size(); ++k)
     views += fmt::format("{}{} ({})", k ? ", " : "", job.views[static_cast<size_t>(set.views[k])].name,
                          set.patterns[k]);
+  const std::string by =
+      !set.budgeted   ? "screening"
+      : set.complete() ? "budget"
+                       : "budget without " + fmt::format("{}", fmt::join(set.budget->unpropagated, ", ")) +
+                            " (U too small)";
   std::string row = fmt::format("<tr><td>{}</td><td style='text-align:left'>{}</td><td>{}</td><td>{}</td>",
                                 escapeHtml(label), escapeHtml(views), number(set.score),
-                                set.budgeted ? "budget" : "screening");
+                                escapeHtml(by));
   for (const PredictedDimension& d : set.dimensions)
     row += fmt::format("<td>{}{}</td>", d.identifiable ? fmt::format("{:.4f}", d.expanded) : "—",
                        d.u_over_t() && std::isfinite(*d.u_over_t())

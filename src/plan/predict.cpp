@@ -433,7 +433,7 @@ PlanResult planViews(const PlanJob& job) {
   result.screening_seconds = since(screening_start);
   const auto budget_start = std::chrono::steady_clock::now();
   // The best screened sets and the compared ones get the measurement's budget.
-  const int budgeted = std::min(job.budgeted, static_cast<int>(ranked.size()));
+  int budgeted = std::min(job.budgeted, static_cast<int>(ranked.size()));
   {
     // One set per core, as the views.
     ProgressBar bar("plan: budgets of the best sets",
@@ -454,8 +454,20 @@ PlanResult planViews(const PlanJob& job) {
       bar.advance();
     });
   }
+  // The compared sets join the budgeted ones in the ranking, unless the
+  // same views in the same order are among them.
+  for (const PredictedSet& c : result.compared)
+    if (std::none_of(ranked.begin(), ranked.begin() + budgeted,
+                     [&](const PredictedSet& s) { return s.views == c.views; })) {
+      std::erase_if(ranked, [&](const PredictedSet& s) { return !s.budgeted && s.views == c.views; });
+      ranked.insert(ranked.begin() + budgeted, c);
+      ++budgeted;
+    }
   std::stable_sort(ranked.begin(), ranked.begin() + budgeted,
-                   [](const PredictedSet& a, const PredictedSet& b) { return a.score < b.score; });
+                   [](const PredictedSet& a, const PredictedSet& b) {
+                     if (a.complete() != b.complete()) return a.complete();
+                     return a.score < b.score;
+                   });
   result.ranked = std::move(ranked);
   result.budget_seconds = since(budget_start);
   result.seconds = since(start);

@@ -85,6 +85,9 @@ struct UncertaintyBudget {
   std::vector<MeasurableCombination> combinations;
   std::optional<MaterialRefinementResult> refinement;
   std::vector<std::string> notes;  // why a component is missing, and the like
+  // The influences whose shift could not be found (their propagation
+  // failed): left out of U, which is then smaller than it should be.
+  std::vector<std::string> unpropagated;
 };
 
 }  // namespace xgauge

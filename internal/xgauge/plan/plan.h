@@ -98,13 +98,21 @@ struct PredictedSet {
   double score = 0.0;  // the criterion (lower is better; +inf: not every dimension determined)
   bool budgeted = false;
   std::optional<UncertaintyBudget> budget;  // when budgeted
+  // A budgeted set whose budget propagated every influence; one that had to
+  // leave one out (UncertaintyBudget::unpropagated: a shift that did not
+  // settle, as the source-detector distance of two free views whose scale
+  // only the curve sets) states a U smaller than it should be, and ranks
+  // after every complete set.
+  bool complete() const { return budget && budget->unpropagated.empty(); }
   std::vector<PredictedDimension> screened;  // a budgeted set's screening, for comparison
 };
 
 struct PlanResult {
   std::string search;   // how the sets were searched, in words
   int64_t screened = 0;  // sets screened
-  std::vector<PredictedSet> ranked;    // budgeted first by score, then screened by score
+  // The budgeted sets (the compared ones among them) first, complete ones
+  // before the others, each by score; then the screened ones by score.
+  std::vector<PredictedSet> ranked;
   std::vector<PredictedSet> compared;  // the job's compare sets, budgeted
   std::vector<Image> view_images;      // each view's simulated radiograph (full size)
   std::vector<PixelRect> white_regions;  // each view's open-beam corner

@@ -314,6 +314,14 @@ void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementRe
         "uncertainty: each dimension's U includes its shift as the component \"misfit\"",
         result.check.regions.size(), moved, largest, 100.0 * share));
   spdlog::debug("uncertainty: the self-checks in {:.2f} s", secondsSince(checks_start));
+  // An influence whose shift could not be found is left out of U, which is
+  // then smaller than it should be: said, not only logged.
+  if (!result.uncertainty.unpropagated.empty())
+    result.check.warnings.push_back(fmt::format(
+        "U leaves out {}: the fit's shift with {} moved by its uncertainty could not be found (see "
+        "the budget's notes), so every U is smaller than it should be",
+        fmt::join(result.uncertainty.unpropagated, ", "),
+        result.uncertainty.unpropagated.size() == 1 ? "it" : "each"));
   for (const std::string& note : result.uncertainty.notes) spdlog::info("uncertainty: {}", note);
   for (const std::string& warning : result.check.warnings) spdlog::warn("{}", warning);
   spdlog::info("uncertainty budget and self-checks in {:.2f} s",

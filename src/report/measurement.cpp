@@ -119,7 +119,8 @@ nlohmann::json uncertaintyJson(const UncertaintyBudget& uncertainty) {
           {"pixels", uncertainty.pixels},
           {"dimensions", budget},
           {"combinations", combinations},
-          {"notes", uncertainty.notes}};
+          {"notes", uncertainty.notes},
+          {"unpropagated", uncertainty.unpropagated}};
 }
 
 // The material refined in situ (null when it was not).

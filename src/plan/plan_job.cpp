@@ -18,6 +18,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// How far inside a bound's range a view's pose and the nominal part must
+// lie (a share of the range): a fit from noisy shots ends near where they
+// lie, and one within 1e-4 of the range of a bound is refused.
+constexpr double kBoundMargin = 0.02;
+
 Vec3 vec3Of(const ConfigNode& node, double limit) {
   if (!node.isArray() || node.size() != 3) node.fail("expected [x, y, z]");
   return {node[0].number(-limit, limit), node[1].number(-limit, limit),
@@ -76,6 +81,15 @@ void readJob(const ConfigNode& root, PlanJob& plan) {
         fixed != plan.inputs.job.fixed_dimensions.end())
       value = fixed->second;
     plan.nominal[d.name] = value;
+    if (const auto b = plan.inputs.job.bounds.find(d.name); b != plan.inputs.job.bounds.end()) {
+      const double margin = kBoundMargin * (b->second[1] - b->second[0]);
+      if (value < b->second[0] + margin || value > b->second[1] - margin)
+        job.at("dimensions").fail(fmt::format(
+            "{}'s value {} (the part the views are simulated at) lies outside its bounds [{}, {}] "
+            "or within {} % of their range from an edge, where the measurement would refuse the "
+            "fit",
+            d.name, value, b->second[0], b->second[1], 100.0 * kBoundMargin));
+    }
   }
 }
 
@@ -126,18 +140,25 @@ void readViews(const ConfigNode& root, PlanJob& plan) {
         pose.translation_mm = centre + position * plan.stage_axis - pose.rotation * part_centre;
         if (plan.inputs.machine.turntable) pose = plan.inputs.machine.turntable->turn(pose, angle);
         v.pose = pose;
-        // The measurement searches each free pose within the job's bounds.
+        // The measurement searches each free pose within the job's bounds,
+        // and a fit that ends at one is not a measurement (the failure
+        // rule): a view on a bound's edge would not be measured.
         const Vec3 euler = pose.eulerDeg();
         const Vec3 world = pose.rotation * part_centre + pose.translation_mm;
-        for (int k = 0; k < 3; ++k)
-          if (euler[k] < rb[static_cast<size_t>(k)][0] - 1e-9 ||
-              euler[k] > rb[static_cast<size_t>(k)][1] + 1e-9 ||
-              world[k] < cb[static_cast<size_t>(k)][0] - 1e-9 ||
-              world[k] > cb[static_cast<size_t>(k)][1] + 1e-9)
+        for (int k = 0; k < 3; ++k) {
+          const auto inside = [](double x, const std::array<double, 2>& r) {
+            const double margin = kBoundMargin * (r[1] - r[0]);
+            return r[0] == r[1] || (x >= r[0] + margin && x <= r[1] - margin);
+          };
+          if (!inside(euler[k], rb[static_cast<size_t>(k)]) ||
+              !inside(world[k], cb[static_cast<size_t>(k)]))
             views.fail(fmt::format(
                 "view {} (rotation [{:.3f}, {:.3f}, {:.3f}] deg, centre [{:.3f}, {:.3f}, {:.3f}] mm) "
-                "lies outside the job's pose_bounds, where the measurement would not search",
-                v.name, euler[0], euler[1], euler[2], world[0], world[1], world[2]));
+                "lies outside the job's pose_bounds or within {} % of their range from an edge, "
+                "where the measurement would end at a bound and refuse the fit",
+                v.name, euler[0], euler[1], euler[2], world[0], world[1], world[2],
+                100.0 * kBoundMargin));
+        }
         plan.views.push_back(std::move(v));
       }
 }

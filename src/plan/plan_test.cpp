@@ -286,6 +286,11 @@ TEST_F(PlanViews, BadPlansAreRefusedNamingTheKey) {
           "size_w");
   refused([](nlohmann::json& p) { p["views"]["rotations_deg"] = nlohmann::json::parse("[[0, 80, 0]]"); },
           "outside the job's pose_bounds");
+  // On a bound's edge: the measurement's fit would end at the bound.
+  refused([](nlohmann::json& p) { p["views"]["rotations_deg"] = nlohmann::json::parse("[[5, 0, 0]]"); },
+          "within 2 % of their range from an edge");
+  refused([](nlohmann::json& p) { p["job"]["dimensions"]["bounds"]["size_x"] = {20, 21}; },
+          "size_x's value 20");
   refused([](nlohmann::json& p) { p["radiographs"] = 4; }, "/radiographs");
   refused([](nlohmann::json& p) { p["compare"] = nlohmann::json::parse(R"([["v00", "v99"]])"); }, "no candidate view named 'v99'");
   refused([](nlohmann::json& p) { p["job"]["radiographs"] = nlohmann::json::array(); },

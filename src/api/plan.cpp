@@ -38,6 +38,13 @@ std::string planTable(const PlanJob& job, const PlanResult& result) {
   for (const PredictedSet& s : result.compared) table += row("compared", s);
   table += fmt::format("U (k = 2) predicted by the measurement's budget at the nominal part; {}.\n",
                        result.search);
+  bool curve = false;
+  for (const PredictedSet& s : result.ranked) curve |= s.budgeted && s.scale_from_curve();
+  if (curve)
+    table +=
+        "Sets of free views only rest the part's scale on the material's curve: a curve off by "
+        "more than its stated uncertainty biases every length beyond U (docs/method.md, "
+        "\"Planning the views\"; \"sets\": \"known_moves\" leaves them out).\n";
   bool incomplete = false;
   for (const PredictedSet& s : result.ranked) incomplete |= s.budgeted && !s.complete();
   if (incomplete)

@@ -236,6 +236,12 @@ PlanJob PlanJob::load(const fs::path& path) {
                                       plan.views.size(), plan.per_set));
   readCriterion(root, plan);
   if (auto b = root.find("budgeted")) plan.budgeted = static_cast<int>(b->integer(1, 100));
+  if (auto sets = root.find("sets")) {
+    const std::string which = sets->string();
+    if (which != "any" && which != "known_moves")
+      sets->fail(fmt::format("unknown sets '{}' (known: \"any\", \"known_moves\")", which));
+    plan.known_moves_only = which == "known_moves";
+  }
   if (auto e = root.find("exhaustive_up_to")) plan.exhaustive_up_to = e->integer(0, int64_t{1} << 40);
   readCompare(root, plan);
   if (auto seed = root.find("seed")) plan.seed = static_cast<uint64_t>(seed->integer(0, int64_t{1} << 53));

@@ -40,6 +40,7 @@ nlohmann::json setJson(const PlanJob& job, const PlanResult& result, const Predi
                         {"patterns", set.patterns},
                         {"score", finite(set.score)},
                         {"predicted_by", set.budgeted ? "budget" : "screening"},
+                        {"scale_from", set.scale_from_curve() ? "curve" : "known move"},
                         {"dimensions", dims}};
   if (set.budget) {
     nlohmann::json components = nlohmann::json::object();

@@ -256,6 +256,19 @@ TEST_F(PlanViews, WhatThePlanCannotDetermineTheMeasurementCannotEither) {
 // Where the grid is too large to screen every set, local exchange from
 // seeded starts finds the best set every set's screening finds, on a grid
 // small enough to check.
+// "sets": "known_moves" keeps only sets whose later views are stage moves of
+// the first: the cuboid's three rotations at two stage positions give 3.
+TEST_F(PlanViews, KnownMovesOnlyKeepsTheStagesPairs) {
+  const PlanResult result = planViews(PlanJob::load(writePlan([](nlohmann::json& p) {
+    p["sets"] = "known_moves";
+  })));
+  EXPECT_EQ(result.screened, 3);
+  for (const PredictedSet& s : result.ranked) {
+    EXPECT_EQ(s.patterns, (std::vector<std::string>{"free", "translated"}));
+    EXPECT_FALSE(s.scale_from_curve());
+  }
+}
+
 TEST_F(PlanViews, LocalExchangeFindsWhatScreeningEverySetFinds) {
   const PlanResult every = planViews(PlanJob::load(writePlan([](nlohmann::json& p) {
     p["radiographs"] = 3;
@@ -299,6 +312,7 @@ TEST_F(PlanViews, BadPlansAreRefusedNamingTheKey) {
           "states no turntable axis");
   refused([](nlohmann::json& p) { p.erase("exposure"); }, "exposure");
   refused([](nlohmann::json& p) { p["criterion"] = "best"; }, "unknown criterion 'best'");
+  refused([](nlohmann::json& p) { p["sets"] = "known"; }, "unknown sets 'known'");
 }
 
 }  // namespace

@@ -275,6 +275,14 @@ std::vector<std::string> patternsOf(const PlanJob& job, const std::vector<int>& 
   return out;
 }
 
+// Whether the job's "sets" admits the set (its views in shot order).
+bool admitted(const PlanJob& job, const std::vector<int>& set) {
+  if (!job.known_moves_only) return true;
+  for (size_t k = 1; k < set.size(); ++k)
+    if (pi::relationOf(job, set[0], set[k]).pattern == Acquisition::kFree) return false;
+  return true;
+}
+
 int64_t combinations(int n, int k) {
   int64_t c = 1;
   for (int i = 0; i < k; ++i) c = c * (n - i) / (i + 1);
@@ -308,6 +316,7 @@ void exchange(const PlanJob& job, const Screening& screening, std::vector<int> s
   const int n = static_cast<int>(job.views.size());
   const auto screen = [&](std::vector<int> s) {
     std::sort(s.begin(), s.end());
+    if (!admitted(job, s)) return std::pair{kInf, s};
     if (!out.sets.contains(s)) out.sets[s] = screening.predict(s);
     return std::pair{criterionOf(job, out.sets[s]), s};
   };
@@ -399,10 +408,15 @@ PlanResult planViews(const PlanJob& job) {
   const int64_t all = combinations(n, job.per_set);
   if (all <= job.exhaustive_up_to) {
     forEachCombination(n, job.per_set, [&](const std::vector<int>& set) {
-      screened.sets[set] = screening.predict(set);
+      if (admitted(job, set)) screened.sets[set] = screening.predict(set);
     });
-    result.search = fmt::format("every one of the {} sets of {} of the {} views screened", all,
-                                job.per_set, n);
+    result.search =
+        job.known_moves_only
+            ? fmt::format("every one of the {} sets of known moves among the {} sets of {} of the "
+                          "{} views screened",
+                          screened.sets.size(), all, job.per_set, n)
+            : fmt::format("every one of the {} sets of {} of the {} views screened", all,
+                          job.per_set, n);
   } else {
     // Seeded starts (the job's compare sets among them), each improved by
     // exchanging one view at a time.
@@ -421,6 +435,11 @@ PlanResult planViews(const PlanJob& job) {
         job.per_set, job.per_set, n, all, starts.size(), screened.sets.size());
   }
   result.screened = static_cast<int64_t>(screened.sets.size());
+  if (screened.sets.empty())
+    fail("{}: no set of the {} candidate views is a set of known moves (\"sets\": "
+         "\"known_moves\": every view after a set's first must be a stage move or a turntable turn "
+         "of it, from the same fixture rotation)",
+         job.file.string(), n);
   std::vector<PredictedSet> ranked;
   for (const auto& [set, dims] : screened.sets) {
     PredictedSet p;

@@ -26,6 +26,7 @@
 #include <nlohmann/json.hpp>
 
 #include <filesystem>
+#include <algorithm>
 #include <optional>
 #include <string>
 #include <vector>
@@ -69,6 +70,11 @@ struct PlanJob {
   PlanCriterion criterion = PlanCriterion::kWorst;
   std::string criterion_dimension;
   int budgeted = 8;  // best screened sets given the budget
+  // Only sets whose every view after the first is a known move of it
+  // (translated or turned): their scale is the stage's or the turntable's,
+  // not the material curve's, which two free views rest on ("sets":
+  // "known_moves"; default "any").
+  bool known_moves_only = false;
   // Every set is screened up to this many; beyond, local exchange from
   // seeded starts.
   int64_t exhaustive_up_to = 20000;
@@ -94,6 +100,12 @@ struct PredictedDimension {
 struct PredictedSet {
   std::vector<int> views;             // indices into PlanJob::views, in shot order
   std::vector<std::string> patterns;  // per view: free, translated, turned
+  // Every view after the first placed anew: nothing but the material's
+  // curve sets the part's distance from the source, so its scale.
+  bool scale_from_curve() const {
+    return std::all_of(patterns.begin() + 1, patterns.end(),
+                       [](const std::string& p) { return p == "free"; });
+  }
   std::vector<PredictedDimension> dimensions;
   double score = 0.0;  // the criterion (lower is better; +inf: not every dimension determined)
   bool budgeted = false;

@@ -22,8 +22,9 @@ std::string planTable(const PlanJob& job, const PlanResult& result) {
       views += fmt::format("{}{}:{}", k ? " " : "", job.views[static_cast<size_t>(set.views[k])].name,
                            set.patterns[k]);
     const std::string score = std::isfinite(set.score) ? fmt::format("{:.4f}", set.score) : "-";
-    std::string line = fmt::format("{:<9} {:<36} {:>9}", label, views,
-                                   set.complete() ? score : score + "*");
+    const std::string marks =
+        std::string(set.budgeted && !set.complete() ? "*" : "") + (set.beyond_range.empty() ? "" : "+");
+    std::string line = fmt::format("{:<9} {:<36} {:>9}", label, views, score + marks);
     for (const PredictedDimension& d : set.dimensions)
       line += d.identifiable ? fmt::format(" {:>10.4f}", d.expanded) : fmt::format(" {:>10}", "-");
     return line + "\n";
@@ -38,6 +39,13 @@ std::string planTable(const PlanJob& job, const PlanResult& result) {
   for (const PredictedSet& s : result.compared) table += row("compared", s);
   table += fmt::format("U (k = 2) predicted by the measurement's budget at the nominal part; {}.\n",
                        result.search);
+  bool beyond = false;
+  for (const PredictedSet& s : result.ranked) beyond |= s.budgeted && !s.beyond_range.empty();
+  if (beyond)
+    table +=
+        "+: a view's paths run beyond the material's calibrated range: the curve is extrapolated "
+        "there, the model may not fit the shot and U does not say by how much; the set ranks "
+        "after every set within the range (plan.json: \"beyond_calibrated_range\").\n";
   bool curve = false;
   for (const PredictedSet& s : result.ranked) curve |= s.budgeted && s.scale_from_curve();
   if (curve)

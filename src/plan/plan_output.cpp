@@ -21,6 +21,8 @@ nlohmann::json finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : 
 nlohmann::json measurementJobOf(const PlanJob& job, const PlanResult& result, const std::vector<int>& views);
 
 nlohmann::json setJson(const PlanJob& job, const PlanResult& result, const PredictedSet& set) {
+  nlohmann::json beyond = nlohmann::json::object();
+  for (const auto& [view, mm] : set.beyond_range) beyond[view] = mm;
   nlohmann::json views = nlohmann::json::array();
   for (int v : set.views) views.push_back(job.views[static_cast<size_t>(v)].name);
   nlohmann::json dims = nlohmann::json::object();
@@ -41,6 +43,7 @@ nlohmann::json setJson(const PlanJob& job, const PlanResult& result, const Predi
                         {"score", finite(set.score)},
                         {"predicted_by", set.budgeted ? "budget" : "screening"},
                         {"scale_from", set.scale_from_curve() ? "curve" : "known move"},
+                        {"beyond_calibrated_range", beyond},
                         {"dimensions", dims}};
   if (set.budget) {
     nlohmann::json components = nlohmann::json::object();
@@ -106,11 +109,13 @@ std::string setRow(const PlanJob& job, const PredictedSet& set, const std::strin
   for (size_t k = 0; k < set.views.size(); ++k)
     views += fmt::format("{}{} ({})", k ? ", " : "", job.views[static_cast<size_t>(set.views[k])].name,
                          set.patterns[k]);
-  const std::string by =
+  std::string by =
       !set.budgeted   ? "screening"
       : set.complete() ? "budget"
                        : "budget without " + fmt::format("{}", fmt::join(set.budget->unpropagated, ", ")) +
                             " (U too small)";
+  for (const auto& [view, mm] : set.beyond_range)
+    by += fmt::format("; {} has paths to {:.1f} mm, beyond the calibrated range", view, mm);
   std::string row = fmt::format("<tr><td>{}</td><td style='text-align:left'>{}</td><td>{}</td><td>{}</td>",
                                 escapeHtml(label), escapeHtml(views), number(set.score),
                                 escapeHtml(by));

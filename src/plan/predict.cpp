@@ -1,6 +1,8 @@
 // The sets of views screened, searched, budgeted and ranked (plan.h).
 #include "views.h"
 
+#include "xgauge/measure/self_check.h"
+
 #include "xgauge/core/progress.h"
 #include "xgauge/lab/random.h"
 
@@ -334,11 +336,28 @@ void exchange(const PlanJob& job, const Screening& screening, std::vector<int> s
   }
 }
 
+// The views of `set` whose longest path runs beyond the material's
+// calibrated range (by more than kBeyondRange).
+std::vector<std::pair<std::string, double>> beyondRange(const PlanJob& job,
+                                                        const std::vector<pi::SimulatedView>& views,
+                                                        const std::vector<int>& set) {
+  std::vector<std::pair<std::string, double>> out;
+  const auto& range = job.inputs.material->calibratedRange();
+  if (!range) return out;
+  for (int v : set) {
+    const double longest = views[static_cast<size_t>(v)].longest_path_mm;
+    if (longest > (*range)[1] * (1.0 + kBeyondRange))
+      out.emplace_back(job.views[static_cast<size_t>(v)].name, longest);
+  }
+  return out;
+}
+
 PredictedSet budgetSet(const PlanJob& job, const std::vector<pi::SimulatedView>& views,
                        const std::vector<int>& set) {
   PredictedSet out;
   out.views = set;
   out.patterns = patternsOf(job, set);
+  out.beyond_range = beyondRange(job, views, set);
   MeasurementInputs inputs = pi::inputsFor(job, set, views);
   ForwardModel model(inputs);
   const std::vector<double> theta = pi::nominalTheta(job, model, set);
@@ -444,6 +463,7 @@ PlanResult planViews(const PlanJob& job) {
   for (const auto& [set, dims] : screened.sets) {
     PredictedSet p;
     p.views = set, p.patterns = patternsOf(job, set), p.dimensions = dims;
+    p.beyond_range = beyondRange(job, views, set);
     p.score = criterionOf(job, dims);
     ranked.push_back(std::move(p));
   }
@@ -484,7 +504,7 @@ PlanResult planViews(const PlanJob& job) {
     }
   std::stable_sort(ranked.begin(), ranked.begin() + budgeted,
                    [](const PredictedSet& a, const PredictedSet& b) {
-                     if (a.complete() != b.complete()) return a.complete();
+                     if (a.trusted() != b.trusted()) return a.trusted();
                      return a.score < b.score;
                    });
   result.ranked = std::move(ranked);

@@ -131,6 +131,7 @@ SimulatedView simulateView(const PlanJob& job, int view) {
   auto open = std::make_shared<const PreparedRadiograph>(prepareRadiograph(
       Image(machine.columns, machine.rows, 1.0f), RadiographFrames{}, stand_in, machine));
   Image image;
+  double longest = 0.0;
   {
     MeasurementInputs inputs = inputsOf(job, oneViewJob(job, view, corner), {open});
     ForwardModel model(inputs);
@@ -143,6 +144,8 @@ SimulatedView simulateView(const PlanJob& job, int view) {
           fail("view {}: the part's shadow leaves the {}x{} detector (at pixel {:.0f}, {:.0f})",
                v.name, machine.columns, machine.rows, p.x(), p.y());
     image = simulatedShot(model, theta, 0);
+    const Image paths = model.pathLengths(theta, 0, 0, machine.detectorRect());
+    for (float p : paths.pixels()) longest = std::max(longest, static_cast<double>(p));
   }
   SimulatedView out;
   out.white_region = openCorner(image, v.name);
@@ -166,6 +169,7 @@ SimulatedView simulateView(const PlanJob& job, int view) {
   out.radiograph = std::make_shared<const PreparedRadiograph>(
       prepareRadiograph(image, RadiographFrames{}, spec, machine));
   out.image = std::move(image);
+  out.longest_path_mm = longest;
   MeasurementInputs inputs = inputsOf(job, oneViewJob(job, view, out.white_region), {out.radiograph});
   ForwardModel model(inputs);
   const std::optional<ViewInformation> information =

@@ -36,6 +36,7 @@ struct SimulatedView {
   PixelRect white_region;
   ViewInformation information;
   Image image;  // the noisy normalized radiograph, full size (for the report)
+  double longest_path_mm = 0.0;  // through the nominal part, at a pixel's centre
 };
 SimulatedView simulateView(const PlanJob& job, int view);
 

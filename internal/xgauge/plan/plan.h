@@ -116,6 +116,14 @@ struct PredictedSet {
   // only the curve sets) states a U smaller than it should be, and ranks
   // after every complete set.
   bool complete() const { return budget && budget->unpropagated.empty(); }
+  // The views whose paths through the part run beyond the material's
+  // calibrated range (by more than the measurement's 1 %), with their
+  // longest path: the curve is extrapolated there, the model may not fit
+  // and U does not say by how much. Such a set ranks after every set
+  // within the range.
+  std::vector<std::pair<std::string, double>> beyond_range;
+  // What the ranking puts first: a complete budget within the calibrated range.
+  bool trusted() const { return complete() && beyond_range.empty(); }
   std::vector<PredictedDimension> screened;  // a budgeted set's screening, for comparison
 };
 

@@ -17,6 +17,7 @@
 #include <limits>
 #include <map>
 #include <set>
+#include <tuple>
 
 namespace xgauge {
 
@@ -504,8 +505,12 @@ PlanResult planViews(const PlanJob& job) {
     }
   std::stable_sort(ranked.begin(), ranked.begin() + budgeted,
                    [](const PredictedSet& a, const PredictedSet& b) {
-                     if (a.trusted() != b.trusted()) return a.trusted();
-                     return a.score < b.score;
+                     // A budget known to be too small before one that may
+                     // not fit beyond the calibrated range, before neither.
+                     const auto rank = [](const PredictedSet& s) {
+                       return std::tuple{!s.complete(), !s.beyond_range.empty(), s.score};
+                     };
+                     return rank(a) < rank(b);
                    });
   result.ranked = std::move(ranked);
   result.budget_seconds = since(budget_start);

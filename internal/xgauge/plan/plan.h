@@ -120,18 +120,17 @@ struct PredictedSet {
   // calibrated range (by more than the measurement's 1 %), with their
   // longest path: the curve is extrapolated there, the model may not fit
   // and U does not say by how much. Such a set ranks after every set
-  // within the range.
+  // within the range (and before every incomplete one).
   std::vector<std::pair<std::string, double>> beyond_range;
-  // What the ranking puts first: a complete budget within the calibrated range.
-  bool trusted() const { return complete() && beyond_range.empty(); }
   std::vector<PredictedDimension> screened;  // a budgeted set's screening, for comparison
 };
 
 struct PlanResult {
   std::string search;   // how the sets were searched, in words
   int64_t screened = 0;  // sets screened
-  // The budgeted sets (the compared ones among them) first, complete ones
-  // before the others, each by score; then the screened ones by score.
+  // The budgeted sets (the compared ones among them) first: complete and
+  // within the calibrated range, complete and beyond it, incomplete; each
+  // by score. Then the screened ones by score.
   std::vector<PredictedSet> ranked;
   std::vector<PredictedSet> compared;  // the job's compare sets, budgeted
   std::vector<Image> view_images;      // each view's simulated radiograph (full size)

@@ -531,6 +531,29 @@ def print_table(check, out):
       "U_pred with its 95% interval from n runs (chi-square); maxerr the largest |error|.\n")
 
 
+def choose_sets(plan, specs, ap):
+    """The sets `specs` ([(kind, i)]) names in plan.json, as (spec, label,
+    entry); ap.error() where one is missing, has no job or names views
+    plan.json does not list."""
+    views_by_name = {v["name"]: v for v in plan["views"]}
+    chosen = []
+    for kind, i in specs:
+        spec = f"{kind}:{i}"
+        lst = plan.get(kind, [])
+        if i >= len(lst):
+            ap.error(f"{spec}: plan.json has {len(lst)} {kind} sets")
+        entry = lst[i]
+        if "job" not in entry:
+            ap.error(f"{spec} ({' '.join(entry['views'])}) has no job: it was predicted by "
+                     f"{entry.get('predicted_by')}, not given the measurement's budget (or plan.json is "
+                     f"from an xgauge before plan sets carried their job: run xgauge plan again)")
+        missing = [v for v in entry["views"] if v not in views_by_name]
+        if missing:
+            ap.error(f"{spec}: views {missing} not in plan.json's views")
+        chosen.append((spec, f"{kind}{i}", entry))
+    return chosen
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -563,21 +586,7 @@ def main():
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
-    chosen = []
-    for kind, i in specs:
-        spec = f"{kind}:{i}"
-        lst = plan.get(kind, [])
-        if i >= len(lst):
-            ap.error(f"{spec}: plan.json has {len(lst)} {kind} sets")
-        entry = lst[i]
-        if "job" not in entry:
-            ap.error(f"{spec} ({' '.join(entry['views'])}) has no job: it was predicted by "
-                     f"{entry.get('predicted_by')}, not given the measurement's budget (or plan.json is "
-                     f"from an xgauge before plan sets carried their job: run xgauge plan again)")
-        missing = [v for v in entry["views"] if v not in views_by_name]
-        if missing:
-            ap.error(f"{spec}: views {missing} not in plan.json's views")
-        chosen.append((spec, f"{kind}{i}", entry))
+    chosen = choose_sets(plan, specs, ap)
 
     # A set folder made for another plan's set must not be mixed in.
     for spec, label, entry in chosen:

@@ -159,16 +159,7 @@ def main():
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
 
-    chosen = []
-    for kind, i in specs:
-        spec = f"{kind}:{i}"
-        lst = plan.get(kind, [])
-        if i >= len(lst):
-            ap.error(f"{spec}: plan.json has {len(lst)} {kind} sets")
-        entry = lst[i]
-        if "job" not in entry:
-            ap.error(f"{spec} ({' '.join(entry['views'])}) has no job (predicted by {entry.get('predicted_by')})")
-        chosen.append((spec, f"{kind}{i}", entry))
+    chosen = pc.choose_sets(plan, specs, ap)
     source = {"lab2_machine_dir": str(args.machine_dir), "part": args.part, "specimen": args.specimen,
               "base_seed": base_seed}
     for spec, label, entry in chosen:

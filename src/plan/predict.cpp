@@ -398,68 +398,66 @@ double criterionOf(const PlanJob& job, const std::vector<PredictedDimension>& di
   return job.criterion == PlanCriterion::kSum ? sum : worst;
 }
 
-PlanResult planViews(const PlanJob& job) {
-  const auto start = std::chrono::steady_clock::now();
-  PlanResult result;
-  // Each view on its own core (a render's rows are parallel too, but its
-  // Jacobian's columns and the influences' renders are small at 1024^2);
-  // each view's noise is its own stream, so the result does not depend on
-  // the thread count.
+namespace {
+
+// Each view on its own core (a render's rows are parallel too, but its
+// Jacobian's columns and the influences' renders are small at 1024^2);
+// each view's noise is its own stream, so the result does not depend on
+// the thread count.
+std::vector<pi::SimulatedView> simulateViews(const PlanJob& job) {
   std::vector<pi::SimulatedView> views(job.views.size());
-  {
-    ProgressBar bar("plan: simulating the views", static_cast<int64_t>(job.views.size()));
-    tbb::parallel_for(0, static_cast<int>(job.views.size()), [&](int v) {
-      views[static_cast<size_t>(v)] = pi::simulateView(job, v);
-      bar.advance();
-    });
-  }
-  const auto since = [](std::chrono::steady_clock::time_point t) {
-    return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
-  };
-  result.views_seconds = since(start);
-  const auto screening_start = std::chrono::steady_clock::now();
-  for (const auto& v : views) {
-    result.view_images.push_back(v.image);
-    result.white_regions.push_back(v.white_region);
-  }
-  const Screening screening(job, views);
-  Screened screened;
+  ProgressBar bar("plan: simulating the views", static_cast<int64_t>(job.views.size()));
+  tbb::parallel_for(0, static_cast<int>(job.views.size()), [&](int v) {
+    views[static_cast<size_t>(v)] = pi::simulateView(job, v);
+    bar.advance();
+  });
+  return views;
+}
+
+// Every admitted set screened, or local exchange from seeded starts (the
+// job's compare sets among them) beyond exhaustive_up_to; how, in words.
+std::string searchSets(const PlanJob& job, const Screening& screening, Screened& screened) {
   const int n = static_cast<int>(job.views.size());
   const int64_t all = combinations(n, job.per_set);
+  std::string search;
   if (all <= job.exhaustive_up_to) {
     forEachCombination(n, job.per_set, [&](const std::vector<int>& set) {
       if (admitted(job, set)) screened.sets[set] = screening.predict(set);
     });
-    result.search =
-        job.known_moves_only
-            ? fmt::format("every one of the {} sets of known moves among the {} sets of {} of the "
-                          "{} views screened",
-                          screened.sets.size(), all, job.per_set, n)
-            : fmt::format("every one of the {} sets of {} of the {} views screened", all,
-                          job.per_set, n);
+    search = job.known_moves_only
+                 ? fmt::format("every one of the {} sets of known moves among the {} sets of {} "
+                               "of the {} views screened",
+                               screened.sets.size(), all, job.per_set, n)
+                 : fmt::format("every one of the {} sets of {} of the {} views screened", all,
+                               job.per_set, n);
   } else {
-    // Seeded starts (the job's compare sets among them), each improved by
-    // exchanging one view at a time.
     std::vector<std::vector<int>> starts = job.compare;
     SplitMix64 stream = SplitMix64::stream(job.seed, 0x706c616e73746172ULL);
     const int64_t starts_wanted = std::min<int64_t>(kStarts, all);
     while (static_cast<int64_t>(starts.size()) < starts_wanted) {
       std::set<int> s;
-      while (static_cast<int>(s.size()) < job.per_set) s.insert(static_cast<int>(stream() % static_cast<uint64_t>(n)));
+      while (static_cast<int>(s.size()) < job.per_set)
+        s.insert(static_cast<int>(stream() % static_cast<uint64_t>(n)));
       starts.emplace_back(s.begin(), s.end());
     }
     for (const auto& s : starts) exchange(job, screening, s, screened);
-    result.search = fmt::format(
+    search = fmt::format(
         "{} sets of {} of the {} views ({} combinations): local exchange of one view at a time "
         "from {} seeded starts, {} sets screened",
         job.per_set, job.per_set, n, all, starts.size(), screened.sets.size());
   }
-  result.screened = static_cast<int64_t>(screened.sets.size());
   if (screened.sets.empty())
     fail("{}: no set of the {} candidate views is a set of known moves (\"sets\": "
          "\"known_moves\": every view after a set's first must be a stage move or a turntable turn "
          "of it, from the same fixture rotation)",
          job.file.string(), n);
+  return search;
+}
+
+// The screened sets by score.
+std::vector<PredictedSet> rankScreened(const PlanJob& job,
+                                       const std::vector<pi::SimulatedView>& views,
+                                       const Screened& screened) {
   std::vector<PredictedSet> ranked;
   for (const auto& [set, dims] : screened.sets) {
     PredictedSet p;
@@ -470,33 +468,37 @@ PlanResult planViews(const PlanJob& job) {
   }
   std::stable_sort(ranked.begin(), ranked.end(),
                    [](const PredictedSet& a, const PredictedSet& b) { return a.score < b.score; });
-  result.screening_seconds = since(screening_start);
-  const auto budget_start = std::chrono::steady_clock::now();
-  // The best screened sets and the compared ones get the measurement's budget.
+  return ranked;
+}
+
+// The best `job.budgeted` of `ranked` and the compared sets given the
+// measurement's budget (one set per core), the compared ones joining the
+// ranking unless the same views in the same order are there; the budgeted
+// sets then lead it: complete budgets before those known to be too small,
+// within each views inside the calibrated range before those beyond it,
+// then by score. Returns how many lead.
+int budgetBest(const PlanJob& job, const std::vector<pi::SimulatedView>& views,
+               const Screening& screening, std::vector<PredictedSet>& ranked,
+               std::vector<PredictedSet>& compared) {
   int budgeted = std::min(job.budgeted, static_cast<int>(ranked.size()));
-  {
-    // One set per core, as the views.
-    ProgressBar bar("plan: budgets of the best sets",
-                    budgeted + static_cast<int64_t>(job.compare.size()));
-    result.compared.resize(job.compare.size());
-    tbb::parallel_for(0, budgeted + static_cast<int>(job.compare.size()), [&](int k) {
-      if (k < budgeted) {
-        PredictedSet& set = ranked[static_cast<size_t>(k)];
-        std::vector<PredictedDimension> screened_dimensions = std::move(set.dimensions);
-        set = budgetSet(job, views, set.views);
-        set.screened = std::move(screened_dimensions);
-      } else {
-        const std::vector<int>& views_of = job.compare[static_cast<size_t>(k - budgeted)];
-        PredictedSet& set = result.compared[static_cast<size_t>(k - budgeted)];
-        set = budgetSet(job, views, views_of);
-        set.screened = screening.predict(views_of);
-      }
-      bar.advance();
-    });
-  }
-  // The compared sets join the budgeted ones in the ranking, unless the
-  // same views in the same order are among them.
-  for (const PredictedSet& c : result.compared)
+  ProgressBar bar("plan: budgets of the best sets",
+                  budgeted + static_cast<int64_t>(job.compare.size()));
+  compared.resize(job.compare.size());
+  tbb::parallel_for(0, budgeted + static_cast<int>(job.compare.size()), [&](int k) {
+    if (k < budgeted) {
+      PredictedSet& set = ranked[static_cast<size_t>(k)];
+      std::vector<PredictedDimension> screened_dimensions = std::move(set.dimensions);
+      set = budgetSet(job, views, set.views);
+      set.screened = std::move(screened_dimensions);
+    } else {
+      const std::vector<int>& views_of = job.compare[static_cast<size_t>(k - budgeted)];
+      PredictedSet& set = compared[static_cast<size_t>(k - budgeted)];
+      set = budgetSet(job, views, views_of);
+      set.screened = screening.predict(views_of);
+    }
+    bar.advance();
+  });
+  for (const PredictedSet& c : compared)
     if (std::none_of(ranked.begin(), ranked.begin() + budgeted,
                      [&](const PredictedSet& s) { return s.views == c.views; })) {
       std::erase_if(ranked, [&](const PredictedSet& s) { return !s.budgeted && s.views == c.views; });
@@ -505,18 +507,45 @@ PlanResult planViews(const PlanJob& job) {
     }
   std::stable_sort(ranked.begin(), ranked.begin() + budgeted,
                    [](const PredictedSet& a, const PredictedSet& b) {
-                     // A budget known to be too small before one that may
-                     // not fit beyond the calibrated range, before neither.
                      const auto rank = [](const PredictedSet& s) {
                        return std::tuple{!s.complete(), !s.beyond_range.empty(), s.score};
                      };
                      return rank(a) < rank(b);
                    });
+  return budgeted;
+}
+
+double secondsSince(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+}  // namespace
+
+PlanResult planViews(const PlanJob& job) {
+  const auto start = std::chrono::steady_clock::now();
+  PlanResult result;
+  const std::vector<pi::SimulatedView> views = simulateViews(job);
+  for (const auto& v : views) {
+    result.view_images.push_back(v.image);
+    result.white_regions.push_back(v.white_region);
+  }
+  result.views_seconds = secondsSince(start);
+
+  const auto screening_start = std::chrono::steady_clock::now();
+  const Screening screening(job, views);
+  Screened screened;
+  result.search = searchSets(job, screening, screened);
+  result.screened = static_cast<int64_t>(screened.sets.size());
+  std::vector<PredictedSet> ranked = rankScreened(job, views, screened);
+  result.screening_seconds = secondsSince(screening_start);
+
+  const auto budget_start = std::chrono::steady_clock::now();
+  const int budgeted = budgetBest(job, views, screening, ranked, result.compared);
   result.ranked = std::move(ranked);
-  result.budget_seconds = since(budget_start);
-  result.seconds = since(start);
-  spdlog::info("plan: {} candidate views, {}; {} budgeted, in {:.1f} s", n, result.search,
-               budgeted + job.compare.size(), result.seconds);
+  result.budget_seconds = secondsSince(budget_start);
+  result.seconds = secondsSince(start);
+  spdlog::info("plan: {} candidate views, {}; {} budgeted, in {:.1f} s", job.views.size(),
+               result.search, budgeted, result.seconds);
   return result;
 }
 

@@ -156,6 +156,8 @@ TEST(Lag, APairThatCannotTellTheLagStopsAndAStatedFractionIsUsed) {
     EXPECT_NE(message.find("shot.tif"), std::string::npos) << message;
     EXPECT_NE(message.find("before.tif"), std::string::npos) << message;
     EXPECT_NE(message.find("lag_fraction"), std::string::npos) << message;
+    // and to the characterisation's lag pair, which measures it on its own
+    EXPECT_NE(message.find("xgauge characterize"), std::string::npos) << message;
   }
   frames.lag_fraction = 0.003;
   frames.lag_fraction_uncertainty = 0.0002;

@@ -42,7 +42,11 @@ void subtractPreviousLag(NormalizedRadiograph& out, const RadiographFrames& fram
     if (!(lag.uncertainty <= kMaxLagUncertainty))
       fail("{}: the lag of its previous frame {} cannot be told from the pair (fraction {:.4f}, "
            "standard uncertainty {:.2g} over {} pixels of open beam near the previous frame's "
-           "edges, whose band-pass is {:.2f} times its noise there): state the machine's detector lag_fraction",
+           "edges, whose band-pass is {:.2f} times its noise there): measure the panel's lag on "
+           "its own, with a characterisation's lag pair (xgauge characterize: \"lag\": a bright "
+           "frame after a rest and a dark one right after it; the machine's "
+           "detector.characterization names the detector file it writes), or state the "
+           "machine's detector lag_fraction",
            name, previous_name, lag.fraction, lag.uncertainty, lag.pixels, lag.structure);
   } else {
     lag.fraction = frames.lag_fraction;

@@ -18,8 +18,6 @@ namespace {
 
 nlohmann::json finite(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
-nlohmann::json measurementJobOf(const PlanJob& job, const PlanResult& result, const std::vector<int>& views);
-
 nlohmann::json setJson(const PlanJob& job, const PlanResult& result, const PredictedSet& set) {
   nlohmann::json beyond = nlohmann::json::object();
   for (const auto& [view, mm] : set.beyond_range) beyond[view] = mm;
@@ -57,7 +55,7 @@ nlohmann::json setJson(const PlanJob& job, const PlanResult& result, const Predi
     out["notes"] = set.budget->notes;
     out["complete"] = set.complete();
     out["unpropagated"] = set.budget->unpropagated;
-    out["job"] = measurementJobOf(job, result, set.views);
+    out["job"] = measurementJobFor(job, result, set.views);
   }
   return out;
 }
@@ -197,10 +195,6 @@ std::string reportHtml(const PlanJob& job, const PlanResult& result) {
       "margin:0}}figcaption{{color:#555;font-size:12px;max-width:520px}}</style></head><body>{}"
       "</body></html>\n",
       body);
-}
-
-nlohmann::json measurementJobOf(const PlanJob& job, const PlanResult& result, const std::vector<int>& views) {
-  return measurementJobFor(job, result, views);
 }
 
 }  // namespace

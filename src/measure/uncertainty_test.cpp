@@ -11,6 +11,8 @@
 #include "xgauge/core/parallel.h"
 #include "xgauge/core/progress.h"
 #include "xgauge/geometry/part_model.h"
+#include "xgauge/image/lag.h"
+#include "xgauge/image/stats.h"
 #include "xgauge/image/tiff.h"
 #include "xgauge/lab/random.h"
 #include "xgauge/material/exponential_sum.h"
@@ -83,6 +85,17 @@ struct Scene {
   // When not 0: dark and flat frames whose open beam slopes by this much
   // per mm along u, the raw radiographs dark + I (flat - dark).
   double flat_slope_per_mm = 0.0;
+  // With `rotated`: the job names "c_before.tif" as c's previous frame, a
+  // shot of the part with its sizes scaled by `rotated_previous_scale` at
+  // `rotated_previous_pose` (c's pose when not given, where a scale below 1
+  // puts its edges inside c's shadow), of which c records `rotated_lab_lag`.
+  bool rotated_previous_frame = false;
+  double rotated_previous_scale = 1.0;
+  std::optional<Pose> rotated_previous_pose;
+  double rotated_lab_lag = 0.0;
+  // When not empty: the detector characterisation file's text, written as
+  // detector.json and named by the machine's detector.characterization.
+  std::string detector_file;
 };
 
 class Uncertainty : public ::testing::Test {
@@ -106,7 +119,12 @@ class Uncertainty : public ::testing::Test {
     lab.source_detector_distance_mm += s.lab_distance_offset_mm;
     Machine stated = s.machine;
     stated.lag_fraction = s.stated_lag;
-    std::ofstream(dir_ / "machine.json") << stated.toJson().dump();
+    nlohmann::json machine = stated.toJson();
+    if (!s.detector_file.empty()) {
+      std::ofstream(dir_ / "detector.json") << s.detector_file;
+      machine["detector"]["characterization"] = "detector.json";
+    }
+    std::ofstream(dir_ / "machine.json") << machine.dump();
     nlohmann::json material = s.material.toJson();
     if (!std::isnan(s.material_uncertainty))
       material["uncertainty"]["transmission"] = s.material_uncertainty;
@@ -137,6 +155,17 @@ class Uncertainty : public ::testing::Test {
     std::vector<std::pair<std::string, Pose>> shots{{"a", s.a}, {"b", b}};
     if (s.rotated) shots.emplace_back("c", *s.rotated);
     for (const auto& [name, pose] : shots) {
+      Image before;  // c's previous frame, when the job names one
+      if (name == "c" && s.rotated_previous_frame) {
+        std::map<std::string, double> scaled = s.truth;
+        for (auto& [dimension, value] : scaled) value *= s.rotated_previous_scale;
+        const TriangleMesh smaller = part.mesh(part.values(scaled));
+        poseVertices(s.rotated_previous_pose.value_or(pose), smaller.vertices, world);
+        renderIntensity(lab, {world, smaller.triangles}, table, options, before);
+        for (float& v : before.pixels())
+          v = static_cast<float>(static_cast<double>(v) + s.noise * gauss(rng));
+        writeTiff(dir_ / "c_before.tif", before, TiffFormat::kFloat32);
+      }
       poseVertices(pose, mesh.vertices, world);
       Image image;
       renderIntensity(lab, {world, mesh.triangles}, table, options, image);
@@ -148,6 +177,7 @@ class Uncertainty : public ::testing::Test {
             if (std::hypot(x + 0.5 - bx, y + 0.5 - by) <= radius) v += height;
           }
           if (name == "b") v += s.lab_lag * static_cast<double>(previous(x, y));
+          if (!before.empty()) v += s.rotated_lab_lag * static_cast<double>(before(x, y));
           if (name == "b" && x >= 2 && x < 22 && y >= 2 && y < 22)
             v += s.lab_white_offset_b;
           image(x, y) = static_cast<float>(v);
@@ -189,7 +219,11 @@ class Uncertainty : public ::testing::Test {
                                             R"(})" +
                                             (s.rotated ? R"(,
         {"name": "c", "image": "c.tif", "white_region": [2, 2, 20, 20], "pattern": "rotated",
-         "reference": "a")" + frames + "}"
+         "reference": "a")" + frames +
+                                                       (s.rotated_previous_frame
+                                                            ? R"(, "previous": "c_before.tif")"
+                                                            : "") +
+                                                       "}"
                                                        : "") +
                                             R"(],
       )" + (s.acceptance.empty() ? std::string() : R"("acceptance": )" + s.acceptance + ",") +
@@ -559,6 +593,97 @@ TEST_F(Uncertainty, TheLagOfThePreviousFrameIsEstimatedSubtractedAndBudgeted) {
     const UncertaintyComponent& s = component(stated, name, "detector lag b");
     EXPECT_EQ(s.standard_uncertainty, 0.1 * lagging.stated_lag);
     EXPECT_NEAR(s.sensitivity, c.sensitivity, 0.1 * std::abs(c.sensitivity) + 0.01) << name;
+  }
+}
+
+// A triple whose rotated shot's previous frame hides its edges: c names as
+// its previous frame a shot of a part 0.7 times the size at c's own pose,
+// of which it records 0.4 %. That frame's edges all lie in c's shadow, so
+// the pair cannot tell the lag (the same frame at a's pose, its edges in
+// c's open beam, tells it: 0.0030 +- 0.0006). On a machine whose detector
+// characterisation states no lag the job is refused, naming c, its
+// previous frame, the machine's lag_fraction and xgauge characterize; with
+// the same machine and a characterisation stating lag_fraction 0.004 +-
+// 0.0002, exactly that fraction of c_before.tif is subtracted from c as the
+// machine's, budgeted as "detector lag c", and every size comes out within
+// its expanded uncertainty of the truth.
+TEST_F(Uncertainty,
+       ATripleWhoseRotatedShotsPreviousFrameHidesItsEdgesMeasuresWithTheCharacterisedLag) {
+  Scene scene;
+  scene.noise = 0.002;
+  scene.rotated = Pose::fromEulerDeg({-1.0, 65.0, 2.0}, {4.0, -2.0, 505.0});
+  scene.bounds =
+      R"({"rotation_deg": [[-5, 5], [15, 75], [-5, 5]], "centre_mm": [[-30, 30], [-30, 30], [470, 530]]})";
+  scene.rotated_previous_frame = true;
+  scene.rotated_previous_scale = 0.7;
+  scene.rotated_lab_lag = 0.004;
+  scene.detector_file = "{}";  // a characterisation without a lag pair
+  const std::string shot = (dir_ / "c.tif").string(), before = (dir_ / "c_before.tif").string();
+
+  // The control: the previous frame's edges in c's open beam tell the lag.
+  Scene visible = scene;
+  visible.rotated_previous_pose = scene.a;
+  measureScene(visible);
+  ASSERT_TRUE(inputs_->radiographs[2]->lag.has_value());
+  const LagEstimate told = *inputs_->radiographs[2]->lag;
+  EXPECT_FALSE(told.stated);
+  EXPECT_LE(told.uncertainty, kMaxLagUncertainty);
+  EXPECT_NEAR(told.fraction, 0.004, 3.0 * told.uncertainty);
+
+  try {
+    measureScene(scene);
+    ADD_FAILURE() << "expected the lag of c's previous frame to be refused";
+  } catch (const Error& error) {
+    const std::string message = error.what();
+    EXPECT_EQ(message.rfind(shot + ": the lag of its previous frame " + before +
+                                " cannot be told from the pair",
+                            0),
+              0u)
+        << message;
+    EXPECT_NE(message.find("lag_fraction"), std::string::npos) << message;
+    EXPECT_NE(message.find("xgauge characterize"), std::string::npos) << message;
+  }
+
+  scene.detector_file = R"({"lag_fraction": {"value": 0.004, "uncertainty": 0.0002}})";
+  const MeasurementResult result = measureScene(scene);
+  EXPECT_EQ(inputs_->machine.lag_fraction, 0.004);
+  EXPECT_EQ(inputs_->machine.lag_fraction_uncertainty, 0.0002);
+  ASSERT_EQ(inputs_->radiographs.size(), 3u);
+  EXPECT_FALSE(inputs_->radiographs[0]->lag.has_value());
+  EXPECT_FALSE(inputs_->radiographs[1]->lag.has_value());
+  const PreparedRadiograph& c = *inputs_->radiographs[2];
+  ASSERT_TRUE(c.lag.has_value());
+  EXPECT_EQ(c.lag->fraction, 0.004);
+  EXPECT_EQ(c.lag->uncertainty, 0.0002);
+  EXPECT_TRUE(c.lag->stated);
+  EXPECT_EQ(describeLag(*c.lag), "fraction 0.00400 +- 0.0002 (the machine's)");
+  EXPECT_FALSE(c.lag_signal_levels.empty());  // kept for the budget
+  // The prepared image is c less 0.004 of c_before.tif, over its white
+  // region's mean; without the subtraction it would differ by 2e-3 in the
+  // shadow of c that c_before.tif's smaller part leaves open.
+  Image expected = readTiff(shot);
+  const Image previous = readTiff(before);
+  subtractLag(expected, previous, 0.004);
+  const double white = meanOf(expected, PixelRect{2, 2, 20, 20});
+  Image unsubtracted = readTiff(shot);
+  const double unsubtracted_white = meanOf(unsubtracted, PixelRect{2, 2, 20, 20});
+  double worst = 0.0, lag_shows = 0.0;
+  for (int y = 0; y < expected.height(); ++y)
+    for (int x = 0; x < expected.width(); ++x) {
+      const double e = static_cast<double>(expected(x, y)) / white;
+      worst = std::max(worst, std::abs(static_cast<double>(c.levels[0](x, y)) - e));
+      lag_shows = std::max(
+          lag_shows, std::abs(static_cast<double>(unsubtracted(x, y)) / unsubtracted_white - e));
+    }
+  EXPECT_LT(worst, 1e-6);
+  EXPECT_GT(lag_shows, 1e-3);
+  for (const auto& dimension : result.dimensions) {
+    const UncertaintyComponent& lag = component(result, dimension.name, "detector lag c");
+    EXPECT_EQ(lag.standard_uncertainty, 0.0002) << dimension.name;
+    ASSERT_TRUE(dimension.expanded_uncertainty) << dimension.name;
+    EXPECT_LT(std::abs(dimension.value - scene.truth.at(dimension.name)),
+              *dimension.expanded_uncertainty)
+        << dimension.name;
   }
 }
 

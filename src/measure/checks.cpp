@@ -3,6 +3,7 @@
 #include "xgauge/image/stats.h"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 #include <cmath>
@@ -475,6 +476,29 @@ double SelfCheck::worstMisfitRatio() const {
   double worst = 0.0;
   for (const RadiographCheck& rc : radiographs) worst = std::max(worst, rc.misfit_ratio);
   return worst;
+}
+
+std::string discrepancyReason(const DimensionUncertainty& u, double coverage_factor,
+                              const Tolerance& tolerance, const SelfCheck& check) {
+  double discrepancy = 0.0;
+  for (const UncertaintyComponent& c : u.components)
+    if (c.name == "misfit") discrepancy = c.contribution;
+  if (discrepancy <= 0.0 || check.regions.empty()) return {};
+  const double without =
+      coverage_factor * std::sqrt(std::max(0.0, u.combined * u.combined - discrepancy * discrepancy));
+  if (without > tolerance.width() / 3.0) return {};
+  std::vector<std::string> named;
+  for (const ResidualRegion& r : check.regions) {
+    if (named.size() == 3) break;
+    named.push_back(fmt::format("{} at pixel ({:.0f}, {:.0f}), {:.0f} sigmas {}", r.radiograph,
+                                r.centre_px.x(), r.centre_px.y(), r.sigmas, r.sign));
+  }
+  const size_t more = check.regions.size() - named.size();
+  return fmt::format(
+      "the model discrepancy: its component \"misfit\" ({:.4f}) makes U {:.4f} where it would "
+      "be {:.4f} without; the part differs from its model at the residual region(s) {}{}",
+      discrepancy, u.expanded, without, fmt::join(named, "; "),
+      more ? fmt::format(" and {} more", more) : std::string());
 }
 
 }  // namespace xgauge

@@ -4,6 +4,8 @@
 
 #include "least_squares.h"
 #include "xgauge/measure/self_check.h"
+#include "xgauge/measure/tolerance.h"
+#include "xgauge/measure/uncertainty.h"
 
 #include <span>
 
@@ -17,5 +19,13 @@ namespace xgauge {
 SelfCheck checkMeasurement(ForwardModel& model, std::span<const double> theta,
                            const LinearizedFit& fit, const AcceptanceRule& rule,
                            std::vector<char>* region_pixels = nullptr);
+
+// Why a dimension's U exceeds a third of its tolerance where the model
+// discrepancy alone makes it so: U without the component "misfit" (the
+// dimension's shift when the residual regions are left out, budget.h) would
+// be at most T / 3. Names the strongest residual regions (as the report
+// draws them); empty where the discrepancy is not the cause.
+std::string discrepancyReason(const DimensionUncertainty& u, double coverage_factor,
+                              const Tolerance& tolerance, const SelfCheck& check);
 
 }  // namespace xgauge

@@ -377,11 +377,16 @@ void decideConformity(const ForwardModel& model, MeasurementResult& result) {
       continue;
     }
     d.decision = decide(d.value, d.expanded_uncertainty.value_or(kInf), t->second);
+    if (d.decision->cannot_decide && own && !d.verified)
+      d.decision->cannot_decide_reason = discrepancyReason(*own, result.uncertainty.coverage_factor,
+                                                           t->second, result.check);
     if (d.decision->cannot_decide)
       result.check.warnings.push_back(fmt::format(
           "{}: U = {:.4f} exceeds a third of the tolerance ({:.4f}): this measurement cannot "
-          "reliably decide conformity",
-          d.name, d.expanded_uncertainty.value_or(kInf), t->second.width() / 3.0));
+          "reliably decide conformity{}",
+          d.name, d.expanded_uncertainty.value_or(kInf), t->second.width() / 3.0,
+          d.decision->cannot_decide_reason.empty() ? ""
+                                                   : ", because of " + d.decision->cannot_decide_reason));
   }
   if (!withheld.empty())
     result.check.warnings.push_back(fmt::format(

@@ -3,6 +3,8 @@
 // key with the part model's defaults.
 #include "xgauge/measure/tolerance.h"
 
+#include "checks.h"
+
 #include "geometry/test_files.h"
 #include "xgauge/core/config.h"
 #include "xgauge/measure/job.h"
@@ -136,10 +138,10 @@ TEST(Tolerance, VerdictNames) {
 }
 
 TEST(Tolerance, ExitCodeIsTheWorstVerdict) {
-  const Decision conforms{Verdict::kConforms, false, std::string(kDecisionRule)};
-  const Decision flagged{Verdict::kConforms, true, std::string(kDecisionRule)};
-  const Decision inconclusive{Verdict::kInconclusive, false, std::string(kDecisionRule)};
-  const Decision rejected{Verdict::kDoesNotConform, false, std::string(kDecisionRule)};
+  const Decision conforms{Verdict::kConforms, false, std::string(kDecisionRule), {}};
+  const Decision flagged{Verdict::kConforms, true, std::string(kDecisionRule), {}};
+  const Decision inconclusive{Verdict::kInconclusive, false, std::string(kDecisionRule), {}};
+  const Decision rejected{Verdict::kDoesNotConform, false, std::string(kDecisionRule), {}};
   EXPECT_EQ(kExitConforms, 0);
   EXPECT_EQ(kExitCouldNotMeasure, 1);
   EXPECT_EQ(kExitInconclusive, 2);
@@ -323,6 +325,43 @@ TEST_F(JobTolerances, ANonFiniteToleranceIsRefused) {
     EXPECT_EQ(e.message(), "expected a finite number");
     EXPECT_EQ(e.where().key_path, "/tolerances/size_x/upper");
   }
+}
+
+// A dimension that cannot decide because of the model discrepancy says so
+// and names the residual regions; one whose U is too large without it, or
+// that has no discrepancy component, gets no reason.
+TEST(CannotDecide, TheReasonNamesTheResidualRegionsWhereTheDiscrepancyMakesIt) {
+  DimensionUncertainty u;
+  u.name = "thickness";
+  // u_c^2 = 0.003^2 + 0.004^2: U = 0.010 with the discrepancy, 0.006 without.
+  u.components.push_back({"statistical", "noise", 0.003, "mm", 1.0, 0.003});
+  u.components.push_back({"misfit", "the shift", 0.004, "mm", 1.0, 0.004});
+  u.combined = 0.005;
+  u.expanded = 0.010;
+  Tolerance t{4.0, -0.012, 0.012, "job"};  // T / 3 = 0.008
+  SelfCheck check;
+  ResidualRegion a, b;
+  a.radiograph = "t00";
+  a.centre_px = {327.4, 451.0};
+  a.sigmas = 64.5;
+  a.sign = "darker";
+  b.radiograph = "t01";
+  b.centre_px = {425.0, 451.6};
+  b.sigmas = 61.0;
+  b.sign = "brighter";
+  check.regions = {a, b};
+  const std::string reason = discrepancyReason(u, 2.0, t, check);
+  EXPECT_NE(reason.find("model discrepancy"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("0.0060 without"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("t00 at pixel (327, 451), 64 sigmas darker"), std::string::npos) << reason;
+  EXPECT_NE(reason.find("t01 at pixel (425, 452)"), std::string::npos) << reason;
+  // Too uncertain even without it: U would be 0.0060 > T / 3 = 0.005.
+  Tolerance narrow{4.0, -0.0075, 0.0075, "job"};
+  EXPECT_EQ(discrepancyReason(u, 2.0, narrow, check), "");
+  // No regions, or no discrepancy component: no reason.
+  EXPECT_EQ(discrepancyReason(u, 2.0, t, SelfCheck{}), "");
+  u.components.pop_back();
+  EXPECT_EQ(discrepancyReason(u, 2.0, t, check), "");
 }
 
 }  // namespace

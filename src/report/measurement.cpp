@@ -77,6 +77,8 @@ nlohmann::json dimensionJson(const ForwardModel& model, const MeasuredDimension&
   if (d.decision) {
     item["verdict"] = std::string(verdictName(d.decision->verdict));
     item["cannot_decide"] = d.decision->cannot_decide;
+    if (!d.decision->cannot_decide_reason.empty())
+      item["cannot_decide_reason"] = d.decision->cannot_decide_reason;
   }
   return item;
 }

@@ -77,6 +77,10 @@ struct Decision {
   // verdict. Exactly U = T / 3 is not flagged.
   bool cannot_decide = false;
   std::string rule;  // kDecisionRule
+  // Why it cannot decide where the model discrepancy alone makes it so (U
+  // without that component would be at most T / 3): names the residual
+  // regions where the part differs from its model; empty otherwise.
+  std::string cannot_decide_reason;
 };
 
 // The verdict on a measured `value` with expanded uncertainty

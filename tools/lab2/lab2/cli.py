@@ -38,6 +38,10 @@ def main(argv=None):
     s.add_argument("--runs", type=int, default=1, help="runs per machine, each with its own seed (machine seed + "
                                                       "7919 k) and so its own draws (default 1)")
     s.add_argument("--frames", type=int, default=4, help="frames in the dark and flat series (default 4)")
+    s.add_argument("--defects", default="usual", choices=("usual", "strong", "none"),
+                   help="the bracket's and the shaft's imperfections: usual (lab2's ranges), strong (a fillet of 1 "
+                        "to 1.5 mm, holes 0.5 to 1 deg off, an upright chamfer of 0.3 to 0.6 mm, the small section "
+                        "0.05 to 0.1 mm eccentric, the cross hole 0.5 to 1 deg off) or none (default usual)")
     s.add_argument("-j", "--jobs", type=int, default=1, help="machines generated at once, in separate processes "
                                                             "(default 1)")
     s = sub.add_parser("render", help="render one part (path or transmission) for cross-checks")
@@ -96,7 +100,8 @@ def main(argv=None):
         if getattr(a, "frames", None):
             cfg["frames"] = {"darks": a.frames, "flats": a.frames}
         out = os.path.join(a.output, f"run{k:02d}", cfg["id"]) if runs > 1 else os.path.join(a.output, cfg["id"])
-        tasks.append((cfg, out, getattr(a, "imperfections", True), parts, a.masters, a.master_specimens))
+        tasks.append((cfg, out, getattr(a, "imperfections", True), parts, a.masters, a.master_specimens,
+                      getattr(a, "defects", "usual")))
     jobs = max(1, int(getattr(a, "jobs", 1) or 1))
     if jobs == 1:
         for task in tasks:
@@ -110,8 +115,10 @@ def main(argv=None):
 
 
 def _one(task):
+    from . import physical
     from .session import Machine, Session
-    cfg, out, imperfections, parts, masters, specimens = task
+    cfg, out, imperfections, parts, masters, specimens, defects = task
+    physical.defect_profile = defects
     t, c = time.time(), time.process_time()
     truth = Session(Machine(cfg), out, imperfections=imperfections, parts=parts, masters=masters,
                     master_specimens=specimens).run()

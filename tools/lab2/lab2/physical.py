@@ -19,12 +19,15 @@ so the file that is rendered is the file in the dataset
   r^2 (1 - pi/4) per unit length that a bent or milled bracket keeps there);
   each of the three holes drilled off its axis by a tilt of up to 0.6 deg
   about its centre at mid-plate (the diameter and the position at
-  mid-plate are the model's).
+  mid-plate are the model's).  With the "strong" defect profile
+  (``defect_profile``): a fillet of 1 to 1.5 mm, tilts of 0.5 to 1 deg and
+  a chamfer of 0.3 to 0.6 mm on the upright's outer top edge.
 - ``shaft`` (Part 6, parts/stepped_shaft.json): dimensions off Shaft A by
   up to 0.3 mm (diameters 0.1 mm); the small section eccentric (its axis
   offset by 0.01 to 0.05 mm in a random direction), the cross hole off the
   axis (its axis passing 0 to 0.05 mm from it, along z) and tilted by up to
-  0.6 deg.
+  0.6 deg ("strong": offset 0.05 to 0.1 mm, tilt 0.5 to 1 deg; "none": the
+  bracket and the shaft without imperfections).
 - ``screw`` (examples/screw/screw.json, a part given by its CAD file):
   lab2 reads only the file's dimensions (and constraints), never its
   "step" shape.  Dimensions off nominal by up to 0.15 mm (slot_width,
@@ -253,21 +256,49 @@ def _tilt(rng, max_deg, axis):
     return e, ang
 
 
+# How strong the bracket's and the shaft's imperfections are drawn
+# (`lab2.py suite --defects`): "usual" (lab2's ranges above), "strong" (the
+# ranges of xgauge's issue 62: a fillet of 1 to 1.5 mm, holes 0.5 to 1 deg
+# off, the small section 0.05 to 0.1 mm eccentric, the cross hole tilted
+# 0.5 to 1 deg, and a chamfer of 0.3 to 0.6 mm on the upright's outer top
+# edge that the model omits), or "none" (the model at the drawn dimensions).
+# The prism's imperfections are not affected.
+DEFECT_PROFILES = ("usual", "strong", "none")
+defect_profile = "usual"
+
+
+def _tilt_between(rng, lo, hi, axis):
+    """As _tilt, the tilt drawn between lo and hi degrees."""
+    th, ph = rng.uniform(lo, hi), rng.uniform(0.0, 2 * math.pi)
+    a, b = th * math.cos(ph), th * math.sin(ph)
+    e = [round(a, 5), round(b, 5), 0.0] if axis == "z" else [0.0, round(a, 5), round(b, 5)]
+    R = rotation_matrix(*e)
+    k = 2 if axis == "z" else 0
+    return e, math.degrees(math.acos(min(1.0, abs(R[k, k]))))
+
+
 def draw_imperfections(kind, rng):
     if kind == "prism":
         return imperfect.draw(rng)
     if kind in ("wedge", "screw"):
         return {}
+    if defect_profile not in DEFECT_PROFILES:
+        raise ValueError(f"defect profile {defect_profile!r}: one of {', '.join(DEFECT_PROFILES)}")
+    if defect_profile == "none":
+        return {}
+    strong = defect_profile == "strong"
     if kind == "bracket":
-        out = {"fillet_radius_mm": round(rng.uniform(0.5, 1.5), 4), "holes": {}}
+        out = {"fillet_radius_mm": round(rng.uniform(1.0 if strong else 0.5, 1.5), 4), "holes": {}}
         for h, ax in (("base_hole_1", "z"), ("base_hole_2", "z"), ("upright_hole", "x")):
-            e, ang = _tilt(rng, 0.6, ax)
+            e, ang = _tilt_between(rng, 0.5, 1.0, ax) if strong else _tilt(rng, 0.6, ax)
             out["holes"][h] = {"rotate_deg": e, "tilt_deg": round(ang, 5)}
+        if strong:
+            out["upright_chamfer_mm"] = round(rng.uniform(0.3, 0.6), 4)
         return out
     if kind == "shaft":
-        e = rng.uniform(0.01, 0.05)
+        e = rng.uniform(0.05, 0.1) if strong else rng.uniform(0.01, 0.05)
         ph = rng.uniform(0.0, 2 * math.pi)
-        te, ang = _tilt(rng, 0.6, "x")
+        te, ang = _tilt_between(rng, 0.5, 1.0, "x") if strong else _tilt(rng, 0.6, "x")
         return {"small_section_offset_mm": [round(e * math.cos(ph), 5), 0.0, round(e * math.sin(ph), 5)],
                 "cross_hole_offset_z_mm": round(rng.uniform(-0.05, 0.05), 5),
                 "cross_hole_rotate_deg": te, "cross_hole_tilt_deg": round(ang, 5)}
@@ -303,8 +334,16 @@ def physical_shape(kind, d, imp):
                 _box([T - 0.5, 0, T - 0.5], [T + r, W, T + r]),
                 _cyl("y", 2 * r, -1.0, W + 1.0, [T + r, 0.0, T + r])]})
         c, s, hd = d["hole_position"], d["hole_spacing"], d["hole_diameter"]
+        cuts = []
+        ch = imp.get("upright_chamfer_mm", 0.0)
+        if ch > 0:
+            # A square prism turned 45 deg about y on the upright's outer top
+            # edge (x = 0, z = H): it removes x + (H - z) <= ch.
+            h = ch / math.sqrt(2.0)
+            cuts.append({**_box([-h, -1.0, -h], [h, W + 1.0, h]), "rotate": [0.0, 45.0, 0.0],
+                         "translate": [0.0, 0.0, float(H)]})
         return {"type": "difference", "solids": [
-            {"type": "union", "solids": plates},
+            {"type": "union", "solids": plates}, *cuts,
             _cyl("z", hd, -(T / 2 + 1), T / 2 + 1, [c, W / 2, T / 2], rot("base_hole_1")),
             _cyl("z", hd, -(T / 2 + 1), T / 2 + 1, [c + s, W / 2, T / 2], rot("base_hole_2")),
             _cyl("x", d["upright_hole_diameter"], -(T / 2 + 1), T / 2 + 1, [T / 2, W / 2, d["upright_hole_height"]],

@@ -265,3 +265,34 @@ def test_several_master_specimens_each_drawn_on_its_own(tmp_path):
             t = json.load(open(os.path.join(os.path.dirname(job), "truth.json")))
             spec = first if m is v["masters"][0] else second
             assert t["part"]["dimensions"] == spec["dimensions"]
+
+
+def test_upright_chamfer_chord():
+    """A ray along y at (x, z) on the upright's outer top corner meets no
+    material where x + (H - z) < c, the whole width W elsewhere."""
+    c = 0.5
+    H, W = BRACKET["height"], BRACKET["width"]
+    _, root = physical.physical_part("bracket", BRACKET, {**ZERO_BRACKET, "upright_chamfer_mm": c})
+    _, plain = physical.physical_part("bracket", BRACKET, ZERO_BRACKET)
+    for x, z in ((0.1, H - 0.1), (0.2, H - 0.25), (0.3, H - 0.1), (0.05, H - 0.6), (0.26, H - 0.26)):
+        cut = x + (H - z) < c
+        assert trace_one(root, [x, -50.0, z], [0, 1, 0]) == pytest.approx(0.0 if cut else W, abs=1e-9)
+        assert trace_one(plain, [x, -50.0, z], [0, 1, 0]) == pytest.approx(W, abs=1e-9)
+
+
+@pytest.mark.parametrize("profile", physical.DEFECT_PROFILES)
+def test_defect_profiles_draw_their_ranges(profile, monkeypatch):
+    monkeypatch.setattr(physical, "defect_profile", profile)
+    rng = np.random.default_rng(11)
+    for _ in range(50):
+        b, s = physical.draw_imperfections("bracket", rng), physical.draw_imperfections("shaft", rng)
+        if profile == "none":
+            assert b == {} and s == {}
+            continue
+        lo_r, lo_t, hi_t, lo_e, hi_e = (1.0, 0.5, 1.0, 0.05, 0.1) if profile == "strong" else (0.5, 0.0, 0.6, 0.01, 0.05)
+        assert lo_r <= b["fillet_radius_mm"] <= 1.5
+        assert all(lo_t - 1e-4 <= h["tilt_deg"] <= hi_t + 1e-4 for h in b["holes"].values())
+        assert ("upright_chamfer_mm" in b) == (profile == "strong")
+        e = math.hypot(*s["small_section_offset_mm"])
+        assert lo_e - 1e-4 <= e <= hi_e + 1e-4
+        assert lo_t - 1e-4 <= s["cross_hole_tilt_deg"] <= hi_t + 1e-4

@@ -296,6 +296,29 @@ TEST_F(Calibrate, WedgeGivesBackTheMaterialItWasRenderedWith) {
   EXPECT_EQ(reread.transmission(7.0), result.material.transmission(7.0));
   EXPECT_EQ(reread.transmissionUncertainty(), result.material.transmissionUncertainty());
   EXPECT_EQ(reread.calibratedRange(), result.material.calibratedRange());
+  // The curve's freedom beyond its range (docs/method.md, "The curve beyond
+  // its calibrated range") is written with it: 0 at the range's end, more
+  // beyond, where it covers how far the calibrated curve's difference from
+  // the rendered one grows beyond what it is at the range's end (the
+  // in-range u covers that: 0.0002 of 0.0036; the growth came to 0.92 of e
+  // at 25 mm, 0.46 at 30, 0.16 at 40).
+  const std::vector<ExtrapolationPoint>& beyond = result.material.extrapolation();
+  ASSERT_GE(beyond.size(), 2u);
+  EXPECT_NEAR(beyond.front().path_mm, (*result.material.calibratedRange())[1], 0.5);
+  EXPECT_EQ(beyond.front().half_width, 0.0);
+  ASSERT_EQ(reread.extrapolation().size(), beyond.size());
+  EXPECT_EQ(reread.extrapolation().back().half_width, beyond.back().half_width);
+  const double end = beyond.front().path_mm;
+  auto deviation = [&](double x) {
+    return result.material.transmission(x) - truth.transmission(x);
+  };
+  EXPECT_GT(result.material.extrapolationHalfWidth(25.0), 0.0);
+  for (double x : {30.0, 40.0}) {
+    EXPECT_GT(result.material.extrapolationHalfWidth(x),
+              result.material.extrapolationHalfWidth(25.0));
+    EXPECT_LE(std::abs(deviation(x) - deviation(end)), result.material.extrapolationHalfWidth(x))
+        << x;
+  }
   // The thickness's and the ramp length's curves are listed for the budget
   // (the scatter's go with the scatter); the rest of u is the table's and
   // the scatter's.
@@ -418,6 +441,13 @@ TEST_F(Calibrate, AWedgeFittedAsAKnownPartGivesBackItsMaterial) {
     // caliper value (and the scatter's weight and width when there is one).
     EXPECT_EQ(result.influences.size(), dims.size() + (c.weight > 0.0 ? 2u : 0u));
     EXPECT_GE(2.0 * result.material.transmissionUncertainty(), worst);
+    // Its freedom beyond the table (docs/method.md, "The curve beyond its
+    // calibrated range"), from the table's end on.
+    ASSERT_GE(result.material.extrapolation().size(), 2u);
+    EXPECT_EQ(result.material.extrapolation().front().path_mm,
+              (*result.material.calibratedRange())[1]);
+    EXPECT_EQ(result.material.extrapolation().front().half_width, 0.0);
+    EXPECT_GT(result.material.extrapolationHalfWidth(1.5 * dims.at("thickness")), 0.0);
     // Each caliper value's curve is listed for the budget, with its change.
     ASSERT_EQ(result.material.curveMoves().size(), dims.size());
     for (const CurveMove& move : result.material.curveMoves()) {

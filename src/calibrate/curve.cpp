@@ -2,6 +2,7 @@
 
 #include "xgauge/core/error.h"
 #include "xgauge/material/attenuation.h"
+#include "xgauge/material/extrapolation.h"
 
 #include <algorithm>
 #include <cmath>
@@ -120,6 +121,14 @@ nlohmann::json toJson(const CurveFit& fit) {
           {"choice", fit.choice},
           {"rate_floor_per_mm", fit.rate_floor_per_mm},
           {"table_uncertainty", fit.tableUncertainty()}};
+}
+
+void addExtrapolation(ExponentialSum& material, std::span<const double> path_mm,
+                      std::span<const double> transmission, const CurveFit& fit) {
+  if (!(fit.noise > 0.0) || path_mm.size() < 4) return;
+  material.setExtrapolation(
+      extrapolationEnvelope(path_mm, transmission, fit.noise, fit.rate_floor_per_mm, material)
+          .points);
 }
 
 double TrueCurve::operator()(double x) const {

@@ -540,6 +540,7 @@ void refineKnownPart(const PartCalibrationJob& job, std::vector<double> theta,
                   table.pixels, table.path_mm.size(), out.max_path_mm));
   out.material.setTransmissionUncertainty(out.fit.tableUncertainty());
   out.material.setCalibratedRange(std::array<double, 2>{table.path_mm.front(), out.max_path_mm});
+  addExtrapolation(out.material, table.path_mm, table.transmission, out.fit);
   addStepSeconds(out.step_seconds, "the final table and curve", clock);
   out.step = "done";
 }

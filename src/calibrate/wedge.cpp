@@ -505,6 +505,11 @@ void calibrateFromWedge(const WedgeCalibrationJob& job, WedgeCalibration& out) {
   const double first =
       (out.path_mm.front() - out.x0_mm) * out.x_max_mm / (out.x_max_mm - out.x0_mm);
   out.material.setCalibratedRange(std::array<double, 2>{std::max(0.0, first), out.x_max_mm});
+  // The table on the curve's axis after eq. 3.7 for its extrapolation.
+  std::vector<double> scaled;
+  for (double x : out.path_mm)
+    scaled.push_back((x - out.x0_mm) * out.x_max_mm / (out.x_max_mm - out.x0_mm));
+  addExtrapolation(out.material, scaled, out.transmission, out.fit);
   out.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   out.step = "done";
 }

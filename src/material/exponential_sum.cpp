@@ -55,6 +55,20 @@ ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
       r->fail(fmt::format("calibrated_range_mm: low ({}) must be below high ({})", (*range)[0],
                           (*range)[1]));
   }
+  std::vector<ExtrapolationPoint> extrapolation;
+  if (auto e = node.find("extrapolation")) {
+    const ConfigNode paths = e->at("path_mm"), widths = e->at("half_width");
+    if (paths.size() != widths.size() || paths.size() < 2)
+      e->fail(fmt::format(
+          "extrapolation: expected path_mm and half_width of the same length, at least 2 (got {} "
+          "and {})",
+          paths.size(), widths.size()));
+    for (size_t i = 0; i < paths.size(); ++i) {
+      extrapolation.push_back({paths[i].number(0.0, 1e6), widths[i].number(0.0, 1.0)});
+      if (i > 0 && !(extrapolation[i].path_mm > extrapolation[i - 1].path_mm))
+        paths[i].fail("extrapolation: path_mm must increase");
+    }
+  }
   try {
     if (model == "exponential_sum") {
       const ConfigNode list = node.at("terms");
@@ -73,6 +87,7 @@ ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
       ExponentialSum out(std::move(terms), description);
       out.transmission_uncertainty_ = uncertainty;
       out.calibrated_range_ = range;
+      out.extrapolation_ = extrapolation;
       if (!moves.empty()) out.setCurveMoves(std::move(moves), besides);
       return out;
     }
@@ -86,6 +101,7 @@ ExponentialSum ExponentialSum::fromConfig(const ConfigNode& node) {
                              : description);
       out.transmission_uncertainty_ = uncertainty;
       out.calibrated_range_ = range;
+      out.extrapolation_ = extrapolation;
       if (!moves.empty()) out.setCurveMoves(std::move(moves), besides);
       return out;
     }
@@ -125,7 +141,44 @@ nlohmann::json ExponentialSum::toJson() const {
     out["uncertainty"]["besides_curve_moves"] = moves_besides_;
   }
   if (calibrated_range_) out["calibrated_range_mm"] = *calibrated_range_;
+  if (!extrapolation_.empty()) {
+    nlohmann::json paths = nlohmann::json::array(), widths = nlohmann::json::array();
+    for (const ExtrapolationPoint& p : extrapolation_)
+      paths.push_back(p.path_mm), widths.push_back(p.half_width);
+    out["extrapolation"] = {{"path_mm", paths}, {"half_width", widths}};
+  }
   return out;
+}
+
+void ExponentialSum::setExtrapolation(std::vector<ExtrapolationPoint> points) {
+  if (points.size() == 1) fail("a curve's extrapolation needs at least 2 points, got 1");
+  for (size_t i = 0; i < points.size(); ++i) {
+    const ExtrapolationPoint& p = points[i];
+    if (!(p.path_mm >= 0.0) || !std::isfinite(p.path_mm) || !(p.half_width >= 0.0) ||
+        !std::isfinite(p.half_width))
+      fail("extrapolation point {}: path {} mm and half-width {} must be finite and >= 0", i,
+           p.path_mm, p.half_width);
+    if (i > 0 && !(p.path_mm > points[i - 1].path_mm))
+      fail("extrapolation point {}: its path ({} mm) must exceed the one before ({} mm)", i,
+           p.path_mm, points[i - 1].path_mm);
+  }
+  extrapolation_ = std::move(points);
+}
+
+double ExponentialSum::extrapolationHalfWidth(double path_mm) const {
+  if (extrapolation_.empty() || !(path_mm > extrapolation_.front().path_mm)) return 0.0;
+  const auto next =
+      std::upper_bound(extrapolation_.begin(), extrapolation_.end(), path_mm,
+                       [](double x, const ExtrapolationPoint& p) { return x < p.path_mm; });
+  if (next == extrapolation_.end()) {
+    const ExtrapolationPoint& last = extrapolation_.back();
+    const double at = transmission(last.path_mm);
+    return at > 0.0 ? last.half_width * transmission(path_mm) / at : last.half_width;
+  }
+  const ExtrapolationPoint& b = *next;
+  const ExtrapolationPoint& a = *(next - 1);
+  const double t = (path_mm - a.path_mm) / (b.path_mm - a.path_mm);
+  return a.half_width + t * (b.half_width - a.half_width);
 }
 
 const std::vector<CurveMove>& ExponentialSum::curveMoves() const {
@@ -141,8 +194,8 @@ void ExponentialSum::setCurveMoves(std::vector<CurveMove> moves, double besides)
       fail("curve move '{}': its standard uncertainty must be positive and its change >= 0",
            move.name);
   moves_besides_ = besides;
-  moves_ = moves.empty() ? nullptr
-                         : std::make_shared<const std::vector<CurveMove>>(std::move(moves));
+  moves_ =
+      moves.empty() ? nullptr : std::make_shared<const std::vector<CurveMove>>(std::move(moves));
 }
 
 double ExponentialSum::rateScaleFor(double transmission, double longest_mm) const {
@@ -163,6 +216,7 @@ ExponentialSum ExponentialSum::withScaledRates(double relative) const {
   ExponentialSum out(std::move(terms), description_);
   out.transmission_uncertainty_ = transmission_uncertainty_;
   out.calibrated_range_ = calibrated_range_;
+  out.extrapolation_ = extrapolation_;
   out.moves_ = moves_;
   out.moves_besides_ = moves_besides_;
   return out;

@@ -82,6 +82,14 @@ CurveFit fitCurve(std::span<const double> path_mm, std::span<const double> trans
 
 nlohmann::json toJson(const CurveFit& fit);
 
+// The curve's freedom beyond its table (material/extrapolation.h; docs/
+// method.md, "The curve beyond its calibrated range"), from the table it
+// was fitted to (on the curve's own path axis) with the fit's noise and
+// rate floor, set on `material` (ExponentialSum::setExtrapolation). A fit
+// without a noise leaves the material without one.
+void addExtrapolation(ExponentialSum& material, std::span<const double> path_mm,
+                      std::span<const double> transmission, const CurveFit& fit);
+
 // A tabulated curve (a simulated dataset's true transmission, DatasetTruth),
 // interpolated linearly; empty when there is none.
 struct TrueCurve {

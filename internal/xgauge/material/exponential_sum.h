@@ -19,6 +19,8 @@
 //                    and curveMoves()
 //   calibrated_range_mm  optional [low, high]: the paths its calibration
 //                    saw; a measurement warns when its part has longer paths
+//   extrapolation    optional {"path_mm": [...], "half_width": [...]}: the
+//                    curve's freedom beyond that range, see extrapolation()
 // A monochromatic material is one term with mu from xraylib.
 #pragma once
 
@@ -34,6 +36,14 @@
 namespace xgauge {
 
 struct CurveMove;
+
+// One point of the curve's extrapolation envelope (ExponentialSum::
+// extrapolation()): at path_mm beyond the calibrated range, the curve may
+// lie anywhere within +-half_width (transmission) of its value.
+struct ExtrapolationPoint {
+  double path_mm = 0.0;
+  double half_width = 0.0;
+};
 
 struct ExponentialTerm {
   double weight = 1.0;     // a_k, dimensionless
@@ -83,6 +93,19 @@ class ExponentialSum {
   // says; beyond them it is extrapolated.
   const std::optional<std::array<double, 2>>& calibratedRange() const { return calibrated_range_; }
   void setCalibratedRange(std::optional<std::array<double, 2>> range) { calibrated_range_ = range; }
+  // How far the curve may be off beyond its calibrated range (docs/method.md,
+  // "The curve beyond its calibrated range"): the half-width e(x) of the
+  // exponential sums its calibration's table admits, less its value at the
+  // range's end, at a few paths from there on (material/extrapolation.h).
+  // Empty for a file without "extrapolation" (written before it, or typed).
+  const std::vector<ExtrapolationPoint>& extrapolation() const { return extrapolation_; }
+  // Throws Error unless there are at least 2 points, with increasing paths
+  // and finite half-widths >= 0.
+  void setExtrapolation(std::vector<ExtrapolationPoint> points);
+  // e(x): 0 up to the first point's path, linear between the points, and
+  // beyond the last one the last one's share of the curve,
+  // e_last I(x) / I(x_last). 0 everywhere without extrapolation().
+  double extrapolationHalfWidth(double path_mm) const;
   // The same curve with every rate scaled by (1 + relative).
   ExponentialSum withScaledRates(double relative) const;
   // The relative scale of the rates that moves the curve by `transmission`
@@ -96,6 +119,7 @@ class ExponentialSum {
   std::string description_;
   double transmission_uncertainty_ = kDefaultTransmissionUncertainty;
   std::optional<std::array<double, 2>> calibrated_range_;
+  std::vector<ExtrapolationPoint> extrapolation_;
   std::shared_ptr<const std::vector<CurveMove>> moves_;  // null: none
   double moves_besides_ = 0.0;
 };

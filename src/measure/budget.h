@@ -22,4 +22,14 @@ UncertaintyBudget estimateUncertainty(ForwardModel& model, std::span<const doubl
 void addMisfitTerm(const ForwardModel& model, const LinearizedFit& fit,
                    const std::vector<char>& region_pixels, UncertaintyBudget& budget);
 
+// The curve beyond its calibrated range (budget_extrapolation.cpp): where
+// the material has an extrapolation envelope e(x) (ExponentialSum::
+// extrapolation) and pixels of the fit see paths through the part beyond
+// its start, each identifiable dimension's linearised shift with those
+// pixels moved by e(path), over sqrt(3) (rectangular), becomes a component
+// "material: curve beyond its calibrated range", and u_c and U grow by it.
+// Nothing where no path goes beyond.
+void addExtrapolationTerm(ForwardModel& model, std::span<const double> theta,
+                          const LinearizedFit& fit, UncertaintyBudget& budget);
+
 }  // namespace xgauge

@@ -1,0 +1,109 @@
+// The budget's component for the material curve beyond its calibrated range
+// (docs/method.md, "The curve beyond its calibrated range"): the pixels
+// whose path through the fitted part is longer than the calibration saw
+// move by the curve's extrapolation envelope e(path), and the linearised
+// fit says how far the dimensions follow.
+#include "budget.h"
+
+#include <fmt/format.h>
+
+#include <Eigen/QR>
+
+#include <algorithm>
+#include <cmath>
+
+namespace xgauge {
+
+namespace {
+
+// A relative eigenvalue of the scaled normal matrix below which a direction
+// counts as undetermined (as the misfit term's).
+constexpr double kUndetermined = 1e-9;
+
+// -(J^T W J)^+ J^T W dr with the fit's weights and the prior's row, scaled
+// to a unit diagonal so that millimetres and degrees compare.
+Eigen::VectorXd linearShift(const LinearizedFit& fit, const Eigen::VectorXd& dr) {
+  const Eigen::VectorXd w = fit.weights();
+  const Eigen::MatrixXd& j = fit.jacobian;
+  Eigen::MatrixXd a = j.transpose() * w.asDiagonal() * j;
+  if (fit.prior) a(fit.prior->column, fit.prior->column) += fit.prior->lambda * fit.prior->lambda;
+  const Eigen::VectorXd g = j.transpose() * w.cwiseProduct(dr);
+  Eigen::VectorXd scale(a.cols());
+  for (Eigen::Index k = 0; k < a.cols(); ++k)
+    scale(k) = a(k, k) > 0.0 ? 1.0 / std::sqrt(a(k, k)) : 0.0;
+  const Eigen::MatrixXd scaled = scale.asDiagonal() * a * scale.asDiagonal();
+  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> solver(scaled);
+  solver.setThreshold(kUndetermined);
+  return -(scale.asDiagonal() * solver.solve(scale.asDiagonal() * g)).eval();
+}
+
+}  // namespace
+
+void addExtrapolationTerm(ForwardModel& model, std::span<const double> theta,
+                          const LinearizedFit& fit, UncertaintyBudget& budget) {
+  const ExponentialSum material = model.materialOf(theta);
+  if (material.extrapolation().empty()) return;
+  const double from = material.extrapolation().front().path_mm;
+  const ScatterModel& scatter = model.job().scatter;
+  // The change of each residual when the curve moves by e(path): a pixel's
+  // simulated value is (1 - w) I + w G(I), over the open beam's level, each
+  // residual scaled by 1 / sqrt(its radiograph's pixels).
+  Eigen::VectorXd dr = Eigen::VectorXd::Zero(fit.residuals.size());
+  int64_t beyond = 0;
+  double longest = 0.0, largest = 0.0;
+  for (const ResidualSegment& segment : fit.segments) {
+    const PixelRect& roi = segment.roi;
+    const Image paths = model.pathLengths(theta, segment.radiograph, fit.level, roi);
+    bool any = false;
+    for (float p : paths.pixels()) any = any || static_cast<double>(p) > from;
+    if (!any) continue;
+    std::optional<ScatterEstimate> spread;
+    if (scatter.enabled()) spread = model.scatter(theta, segment.radiograph, fit.level);
+    const double scale = 1.0 / std::sqrt(static_cast<double>(roi.area()));
+    for (int y = 0; y < roi.height; ++y)
+      for (int x = 0; x < roi.width; ++x) {
+        const auto path = static_cast<double>(paths(x, y));
+        const double e = material.extrapolationHalfWidth(path);
+        if (!(e > 0.0)) continue;
+        ++beyond;
+        longest = std::max(longest, path), largest = std::max(largest, e);
+        double change = e;
+        if (spread) {
+          const ScatterEstimate::Tap tap = spread->tap(roi.x + x + 0.5, roi.y + y + 0.5);
+          change = (1.0 - scatter.weight) * e / spread->openAt(tap);
+        }
+        dr(static_cast<Eigen::Index>(segment.first) + static_cast<Eigen::Index>(y) * roi.width +
+           x) = scale * change;
+      }
+  }
+  if (beyond == 0) return;
+  const Eigen::VectorXd shift = linearShift(fit, dr);
+  const std::string quantity = fmt::format(
+      "the curve beyond its calibrated {:.2f} mm: {} pixels with paths up to {:.2f} mm, where it "
+      "may be off by up to {:.2g} (rectangular)",
+      from, beyond, longest, largest);
+  const auto& dims = model.part().dimensions();
+  for (DimensionUncertainty& du : budget.dimensions) {
+    if (!du.identifiable) continue;
+    const auto it = std::find(fit.indices.begin(), fit.indices.end(),
+                              model.parameters().index("dim/" + du.name));
+    if (it == fit.indices.end()) continue;
+    const double d = shift(it - fit.indices.begin());
+    std::string unit = "mm";
+    for (const auto& dim : dims)
+      if (dim.name == du.name) unit = dim.unit;
+    // The envelope bounds the curve; nothing in the table prefers one
+    // admitted curve to another: a rectangular distribution over +-e.
+    const double u = std::abs(d) / std::sqrt(3.0);
+    du.components.push_back({"material: curve beyond its calibrated range", quantity,
+                             largest / std::sqrt(3.0), "transmission", d / largest, u});
+    du.combined = std::sqrt(du.combined * du.combined + u * u);
+    du.expanded = budget.coverage_factor * du.combined;
+  }
+  budget.notes.push_back(fmt::format(
+      "the material curve beyond its calibrated range: {}; each dimension's shift with the curve "
+      "moved by its envelope there, over sqrt(3), is a component of its U",
+      quantity));
+}
+
+}  // namespace xgauge

@@ -4,40 +4,14 @@
 // move by the curve's extrapolation envelope e(path), and the linearised
 // fit says how far the dimensions follow.
 #include "budget.h"
+#include "budget_internal.h"
 
 #include <fmt/format.h>
-
-#include <Eigen/QR>
 
 #include <algorithm>
 #include <cmath>
 
 namespace xgauge {
-
-namespace {
-
-// A relative eigenvalue of the scaled normal matrix below which a direction
-// counts as undetermined (as the misfit term's).
-constexpr double kUndetermined = 1e-9;
-
-// -(J^T W J)^+ J^T W dr with the fit's weights and the prior's row, scaled
-// to a unit diagonal so that millimetres and degrees compare.
-Eigen::VectorXd linearShift(const LinearizedFit& fit, const Eigen::VectorXd& dr) {
-  const Eigen::VectorXd w = fit.weights();
-  const Eigen::MatrixXd& j = fit.jacobian;
-  Eigen::MatrixXd a = j.transpose() * w.asDiagonal() * j;
-  if (fit.prior) a(fit.prior->column, fit.prior->column) += fit.prior->lambda * fit.prior->lambda;
-  const Eigen::VectorXd g = j.transpose() * w.cwiseProduct(dr);
-  Eigen::VectorXd scale(a.cols());
-  for (Eigen::Index k = 0; k < a.cols(); ++k)
-    scale(k) = a(k, k) > 0.0 ? 1.0 / std::sqrt(a(k, k)) : 0.0;
-  const Eigen::MatrixXd scaled = scale.asDiagonal() * a * scale.asDiagonal();
-  Eigen::CompleteOrthogonalDecomposition<Eigen::MatrixXd> solver(scaled);
-  solver.setThreshold(kUndetermined);
-  return -(scale.asDiagonal() * solver.solve(scale.asDiagonal() * g)).eval();
-}
-
-}  // namespace
 
 void addExtrapolationTerm(ForwardModel& model, std::span<const double> theta,
                           const LinearizedFit& fit, UncertaintyBudget& budget) {
@@ -77,29 +51,16 @@ void addExtrapolationTerm(ForwardModel& model, std::span<const double> theta,
       }
   }
   if (beyond == 0) return;
-  const Eigen::VectorXd shift = linearShift(fit, dr);
+  const Eigen::VectorXd shift = budget_internal::linearShift(fit, fit.weights(), dr);
   const std::string quantity = fmt::format(
       "the curve beyond its calibrated {:.2f} mm: {} pixels with paths up to {:.2f} mm, where it "
       "may be off by up to {:.2g} (rectangular)",
       from, beyond, longest, largest);
-  const auto& dims = model.part().dimensions();
-  for (DimensionUncertainty& du : budget.dimensions) {
-    if (!du.identifiable) continue;
-    const auto it = std::find(fit.indices.begin(), fit.indices.end(),
-                              model.parameters().index("dim/" + du.name));
-    if (it == fit.indices.end()) continue;
-    const double d = shift(it - fit.indices.begin());
-    std::string unit = "mm";
-    for (const auto& dim : dims)
-      if (dim.name == du.name) unit = dim.unit;
-    // The envelope bounds the curve; nothing in the table prefers one
-    // admitted curve to another: a rectangular distribution over +-e.
-    const double u = std::abs(d) / std::sqrt(3.0);
-    du.components.push_back({"material: curve beyond its calibrated range", quantity,
-                             largest / std::sqrt(3.0), "transmission", d / largest, u});
-    du.combined = std::sqrt(du.combined * du.combined + u * u);
-    du.expanded = budget.coverage_factor * du.combined;
-  }
+  // The envelope bounds the curve; nothing in the table prefers one
+  // admitted curve to another: a rectangular distribution over +-e.
+  budget_internal::addShiftComponent(
+      model, fit, shift, 1.0 / std::sqrt(3.0), "material: curve beyond its calibrated range",
+      quantity, budget_internal::ShiftSource{largest / std::sqrt(3.0), "transmission"}, budget);
   budget.notes.push_back(fmt::format(
       "the material curve beyond its calibrated range: {}; each dimension's shift with the curve "
       "moved by its envelope there, over sqrt(3), is a component of its U",

@@ -150,4 +150,33 @@ struct CombinationInputs {
 // dimensions, appended to budget.combinations (budget.dimensions filled).
 void addCombinations(const CombinationInputs& in, UncertaintyBudget& budget);
 
+// Linearised shifts (budget_misfit.cpp) -------------------------------------
+
+// The linear least-squares shift -(J^T W' J)^+ J^T W' dr of the fit's
+// parameters for a change dr of its residuals, W' the fit's weights `w`
+// with the rows where keep[i] is 0 left out (all kept when `keep` is
+// empty), the prior's row included; scaled to the unit diagonal of the full
+// normal matrix so that millimetres and degrees compare, directions below
+// 1e-9 of the largest dropped.
+Eigen::VectorXd linearShift(const LinearizedFit& fit, const Eigen::VectorXd& w,
+                            const Eigen::VectorXd& dr, const std::vector<char>& keep = {});
+
+// What a shift component is the shift of: an influence of
+// `standard_uncertainty` in `unit` (the component's sensitivity is then the
+// dimension's signed shift over it), or, where absent, the shift itself in
+// the dimension's unit (sensitivity 1).
+struct ShiftSource {
+  double standard_uncertainty = 0.0;
+  std::string unit;
+};
+
+// Adds to every identifiable dimension of `budget` that is among the fit's
+// columns the component `name` of contribution |shift of its column| *
+// `factor` (1 for a bound taken as a standard uncertainty, 1/sqrt(3) for a
+// rectangular half-width), and grows u_c and U by it.
+void addShiftComponent(const ForwardModel& model, const LinearizedFit& fit,
+                       const Eigen::VectorXd& shift, double factor, const std::string& name,
+                       const std::string& quantity, const std::optional<ShiftSource>& source,
+                       UncertaintyBudget& budget);
+
 }  // namespace xgauge::budget_internal

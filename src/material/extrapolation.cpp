@@ -25,6 +25,10 @@ constexpr double kLargestMultiplier = 1e30;
 // min ||B a - y||^2 - lambda c.a over a >= 0: Lawson and Hanson's active set
 // (NNLS) with the linear term, each passive set's problem solved by QR of its
 // columns, (B_P^T B_P) s = B_P^T y + lambda c_P / 2.
+// Written here because no packaged library does it: Eigen 3.4 (Debian 12)
+// has no NNLS (its unsupported NNLS module came later), and Ceres or NLopt
+// would solve these 64-unknown bound-constrained quadratics iteratively, to a
+// tolerance, where the active set ends exactly in a few dozen QR solves.
 class ActiveSet {
  public:
   ActiveSet(const Eigen::MatrixXd& b, const Eigen::VectorXd& y)

@@ -3,6 +3,7 @@
 #pragma once
 
 #include "least_squares.h"
+#include "xgauge/measure/self_check.h"
 #include "xgauge/measure/uncertainty.h"
 
 #include <span>
@@ -29,7 +30,10 @@ void addMisfitTerm(const ForwardModel& model, const LinearizedFit& fit,
 // pixels moved by e(path), over sqrt(3) (rectangular), becomes a component
 // "material: curve beyond its calibrated range", and u_c and U grow by it.
 // Nothing where no path goes beyond.
+// `check` is the self-checks' of the same fit (checkMeasurement, checks.h):
+// its radiographs' longest paths say which need their paths rendered again.
 void addExtrapolationTerm(ForwardModel& model, std::span<const double> theta,
-                          const LinearizedFit& fit, UncertaintyBudget& budget);
+                          const LinearizedFit& fit, const SelfCheck& check,
+                          UncertaintyBudget& budget);
 
 }  // namespace xgauge

@@ -14,7 +14,10 @@
 namespace xgauge {
 
 void addExtrapolationTerm(ForwardModel& model, std::span<const double> theta,
-                          const LinearizedFit& fit, UncertaintyBudget& budget) {
+                          const LinearizedFit& fit, const SelfCheck& check,
+                          UncertaintyBudget& budget) {
+  XG_CHECK(check.radiographs.size() == fit.segments.size(),
+           "one radiograph check per segment of the fit");
   const ExponentialSum material = model.materialOf(theta);
   if (material.extrapolation().empty()) return;
   const double from = material.extrapolation().front().path_mm;
@@ -25,12 +28,13 @@ void addExtrapolationTerm(ForwardModel& model, std::span<const double> theta,
   Eigen::VectorXd dr = Eigen::VectorXd::Zero(fit.residuals.size());
   int64_t beyond = 0;
   double longest = 0.0, largest = 0.0;
-  for (const ResidualSegment& segment : fit.segments) {
+  for (size_t k = 0; k < fit.segments.size(); ++k) {
+    // The self-checks found each radiograph's longest path at this level
+    // and roi: paths are rendered again only where some go beyond.
+    if (!(check.radiographs[k].longest_path_mm > from)) continue;
+    const ResidualSegment& segment = fit.segments[k];
     const PixelRect& roi = segment.roi;
     const Image paths = model.pathLengths(theta, segment.radiograph, fit.level, roi);
-    bool any = false;
-    for (float p : paths.pixels()) any = any || static_cast<double>(p) > from;
-    if (!any) continue;
     std::optional<ScatterEstimate> spread;
     if (scatter.enabled()) spread = model.scatter(theta, segment.radiograph, fit.level);
     const double scale = 1.0 / std::sqrt(static_cast<double>(roi.area()));

@@ -300,7 +300,7 @@ void assess(ForwardModel& model, const std::vector<double>& theta, MeasurementRe
   // Where the part differs from its model, U includes how far the
   // dimensions move without those pixels.
   addMisfitTerm(model, fit, region_pixels, result.uncertainty);
-  addExtrapolationTerm(model, theta, fit, result.uncertainty);
+  addExtrapolationTerm(model, theta, fit, result.check, result.uncertainty);
   // Warned about where the shift is a large part of a dimension's
   // uncertainty (kMisfitWarnShare of u_c); smaller ones are in the budget.
   double largest = 0.0, share = 0.0;

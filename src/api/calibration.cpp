@@ -169,12 +169,16 @@ CalibrationSummary calibrateGeometryOrThrow(const CalibrationOptions& options) {
   summary.misfit_ratio = g.misfit_ratio;
   CalibrationSummaryBuilder::set(
       summary,
-      fmt::format("detector tilt about u  {:+.4f} deg  u {:.4f}\n"
-                  "detector tilt about v  {:+.4f} deg  u {:.4f}\n"
+      fmt::format("detector tilt about u  {:+.4f} deg  u {:.4f}  (least squares {:.4f}, "
+                  "leave-one-out {:.4f})\n"
+                  "detector tilt about v  {:+.4f} deg  u {:.4f}  (least squares {:.4f}, "
+                  "leave-one-out {:.4f})\n"
                   "detector rotation      {:+.4f} deg  u {:.4f}\n"
                   "worst misfit ratio     {:.2f}\n"
                   "wrote {}/machine.json\n",
-                  g.angles_deg[0], g.uncertainty_deg[0], g.angles_deg[1], g.uncertainty_deg[1],
+                  g.angles_deg[0], g.uncertainty_deg[0], g.statistical_uncertainty_deg[0],
+                  g.leave_one_out_uncertainty_deg[0], g.angles_deg[1], g.uncertainty_deg[1],
+                  g.statistical_uncertainty_deg[1], g.leave_one_out_uncertainty_deg[1],
                   g.angles_deg[2], g.uncertainty_deg[2], g.misfit_ratio,
                   options.output_folder.string()),
       std::string());

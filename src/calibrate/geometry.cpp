@@ -12,6 +12,8 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <map>
+#include <optional>
 
 namespace xgauge {
 
@@ -71,6 +73,76 @@ std::array<double, 3> detectorUncertainty(ForwardModel& model, const std::vector
   return out;
 }
 
+// The poses whose panel's turn a fit can see: a known pose or a turn about
+// the stage's axis pins the scene; free poses take the turn up exactly.
+bool posesPinTheTurn(const MeasurementJob& job) {
+  bool pinned = false;
+  for (const RadiographSpec& spec : job.radiographs)
+    pinned |= spec.pattern == Acquisition::kKnown || spec.pattern == Acquisition::kTurned;
+  return pinned;
+}
+
+// The job without radiograph `k` (references to later ones renumbered);
+// nothing when another radiograph's pose refers to it.
+std::optional<MeasurementInputs> withoutRadiograph(const MeasurementInputs& inputs, int k) {
+  for (const RadiographSpec& spec : inputs.job.radiographs)
+    if (spec.reference == k) return std::nullopt;
+  MeasurementInputs out = inputs;
+  out.job.radiographs.erase(out.job.radiographs.begin() + k);
+  out.radiographs.erase(out.radiographs.begin() + k);
+  for (RadiographSpec& spec : out.job.radiographs)
+    if (spec.reference > k) --spec.reference;
+  return out;
+}
+
+// A second estimate of the angles: the joint fit again without each
+// radiograph in turn (the delete-one jackknife, Efron and Stein 1981), from
+// the full fit's poses and angles. The least squares' u sees the noise;
+// what differs from shot to shot beyond it (the lag's ghost of the frame
+// before, a halo not quite the panel's, the part's place on the panel)
+// moves the angles with the radiograph left out. The jackknife's variance
+// (n - 1)/n sum (a_i - mean)^2 over the n left out, here (n - 1) times the
+// mean square over the radiographs that can be left out (those no other
+// pose refers to), needs at least three of them. It cannot see what every
+// radiograph shares (the part's stated dimensions, the material's curve).
+void addLeaveOneOut(const MeasurementInputs& inputs, const ForwardModel& full,
+                    const std::vector<double>& theta, double reach_deg,
+                    GeometryCalibration& out) {
+  std::map<std::string, double> fitted;
+  for (int i = 0; i < full.parameters().size(); ++i)
+    fitted[full.parameters()[i].name] = theta[static_cast<size_t>(i)];
+  const int n = static_cast<int>(inputs.radiographs.size());
+  std::vector<int> left_out;
+  for (int k = 0; k < n; ++k)
+    if (withoutRadiograph(inputs, k)) left_out.push_back(k);
+  if (left_out.size() < 3) return;
+  for (const int k : left_out) {
+    const MeasurementInputs sub = *withoutRadiograph(inputs, k);
+    ForwardModel model(sub);
+    std::vector<double> start = model.start();
+    model.freeDetectorPose(start, reach_deg, posesPinTheTurn(sub.job));
+    for (int i = 0; i < model.parameters().size(); ++i)
+      start[static_cast<size_t>(i)] = fitted.at(model.parameters()[i].name);
+    MeasureOptions joint;
+    joint.search_poses = false;
+    joint.assess = false;
+    joint.judge = false;
+    const MeasurementResult fit = measure(model, start, joint);
+    std::array<double, 3> angles{};
+    const std::vector<int> detector = model.detectorIndices();
+    for (size_t a = 0; a < 3; ++a) angles[a] = fit.theta[static_cast<size_t>(detector[a])];
+    out.leave_one_out.push_back({inputs.job.radiographs[static_cast<size_t>(k)].name, angles});
+  }
+  const auto m = static_cast<double>(out.leave_one_out.size());
+  for (size_t a = 0; a < 3; ++a) {
+    double mean = 0.0, squares = 0.0;
+    for (const auto& l : out.leave_one_out) mean += l.angles_deg[a] / m;
+    for (const auto& l : out.leave_one_out)
+      squares += (l.angles_deg[a] - mean) * (l.angles_deg[a] - mean);
+    out.leave_one_out_uncertainty_deg[a] = std::sqrt((n - 1) * squares / m);
+  }
+}
+
 }  // namespace
 
 GeometryCalibration calibrateGeometry(const std::filesystem::path& job_file, double reach_deg) {
@@ -93,9 +165,7 @@ GeometryCalibration calibrateGeometry(const std::filesystem::path& job_file, dou
   // The panel's turn in its plane is a turn of the whole scene about the
   // central ray, which free poses take up exactly: it is held as stated
   // unless a pose is known (or turned about the stage's axis).
-  bool pinned = false;
-  for (const RadiographSpec& spec : inputs.job.radiographs)
-    pinned |= spec.pattern == Acquisition::kKnown || spec.pattern == Acquisition::kTurned;
+  const bool pinned = posesPinTheTurn(inputs.job);
   model.freeDetectorPose(theta, reach_deg, pinned);
   MeasureOptions joint;
   joint.search_poses = false;
@@ -114,9 +184,8 @@ GeometryCalibration calibrateGeometry(const std::filesystem::path& job_file, dou
       fail("{}: the detector's {} ended at its bound ({:.3f} deg, reach +-{} deg): not a result",
            job_file.string(), kNames[k], out.angles_deg[k], reach_deg);
   }
-  out.uncertainty_deg = detectorUncertainty(model, out.fit.theta, out.misfit_ratio);
+  out.statistical_uncertainty_deg = detectorUncertainty(model, out.fit.theta, out.misfit_ratio);
   out.rotation_fitted = pinned;
-  if (!pinned) out.uncertainty_deg[2] = inputs.machine.detector_pose_uncertainty_deg[2];
   // A fit that leaves far more than the noise found the part's poses wrong
   // (or the part is not the one the job names): its angles are not a result.
   if (out.misfit_ratio > inputs.job.acceptance.max_misfit_ratio)
@@ -125,6 +194,12 @@ GeometryCalibration calibrateGeometry(const std::filesystem::path& job_file, dou
         "{}): the part's poses or its stated dimensions are wrong: not a result, no geometry "
         "written",
         job_file.string(), out.misfit_ratio, inputs.job.acceptance.max_misfit_ratio);
+  addLeaveOneOut(inputs, model, out.fit.theta, reach_deg, out);
+  // Each angle's u: the larger of the two estimates of its spread.
+  for (size_t k = 0; k < 3; ++k)
+    out.uncertainty_deg[k] =
+        std::max(out.statistical_uncertainty_deg[k], out.leave_one_out_uncertainty_deg[k]);
+  if (!pinned) out.uncertainty_deg[2] = inputs.machine.detector_pose_uncertainty_deg[2];
   out.machine = inputs.machine;
   out.machine.setDetectorPose(out.angles_deg[0], out.angles_deg[1], out.angles_deg[2]);
   out.machine.detector_pose_uncertainty_deg = out.uncertainty_deg;
@@ -149,6 +224,9 @@ GeometryCalibration calibrateGeometry(const std::filesystem::path& job_file, dou
 }
 
 nlohmann::json GeometryCalibration::toJson() const {
+  nlohmann::json left_out = nlohmann::json::object();
+  for (const LeftOut& l : leave_one_out)
+    left_out[l.radiograph] = {l.angles_deg[0], l.angles_deg[1], l.angles_deg[2]};
   nlohmann::json radiographs = nlohmann::json::array();
   for (const MeasuredRadiograph& r : fit.radiographs)
     radiographs.push_back({{"name", r.name}, {"pose", poseToJson(r.pose)}, {"loss", r.loss}});
@@ -157,6 +235,14 @@ nlohmann::json GeometryCalibration::toJson() const {
        {{"tilt_deg", {angles_deg[0], angles_deg[1]}},
         {"rotation_deg", angles_deg[2]},
         {"standard_uncertainty_deg", {uncertainty_deg[0], uncertainty_deg[1], uncertainty_deg[2]}},
+        {"statistical_uncertainty_deg",
+         {statistical_uncertainty_deg[0], statistical_uncertainty_deg[1],
+          statistical_uncertainty_deg[2]}},
+        {"leave_one_out",
+         {{"uncertainty_deg",
+           {leave_one_out_uncertainty_deg[0], leave_one_out_uncertainty_deg[1],
+            leave_one_out_uncertainty_deg[2]}},
+          {"angles_deg", left_out}}},
         {"rotation", rotation_fitted ? "fitted" : "held as the machine states it"}}},
       {"misfit_ratio", misfit_ratio},
       {"total_loss", fit.total_loss},

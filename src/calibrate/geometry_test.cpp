@@ -13,6 +13,7 @@
 #include <fmt/format.h>
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <filesystem>
 #include <fstream>
 #include <random>
@@ -109,6 +110,24 @@ TEST_F(GeometryCalibrationTest, FindsTheTiltedPanelsPoseFromAKnownPart) {
     EXPECT_LT(g.uncertainty_deg[k], 0.05);
     EXPECT_NEAR(g.angles_deg[k], truth, 3.0 * g.uncertainty_deg[k]);
   }
+  // The second estimate: each of the three shots left out in turn (none is
+  // another's reference), each fit's tilts near the truth; the stated u the
+  // larger of the least squares' and the jackknife's (n - 1)/n sum of squares.
+  ASSERT_EQ(g.leave_one_out.size(), 3u);
+  for (int k = 0; k < 3; ++k) {
+    EXPECT_EQ(g.leave_one_out[static_cast<size_t>(k)].radiograph, fmt::format("s{}", k));
+    EXPECT_NEAR(g.leave_one_out[static_cast<size_t>(k)].angles_deg[0], 1.0, 0.1);
+    EXPECT_NEAR(g.leave_one_out[static_cast<size_t>(k)].angles_deg[1], -0.8, 0.1);
+  }
+  for (size_t a : {0u, 1u}) {
+    double mean = 0.0, squares = 0.0;
+    for (const auto& l : g.leave_one_out) mean += l.angles_deg[a] / 3.0;
+    for (const auto& l : g.leave_one_out) squares += std::pow(l.angles_deg[a] - mean, 2);
+    EXPECT_NEAR(g.leave_one_out_uncertainty_deg[a], std::sqrt(2.0 / 3.0 * squares), 1e-12);
+    EXPECT_EQ(g.uncertainty_deg[a],
+              std::max(g.statistical_uncertainty_deg[a], g.leave_one_out_uncertainty_deg[a]));
+    EXPECT_GT(g.statistical_uncertainty_deg[a], 0.0);
+  }
   EXPECT_FALSE(g.rotation_fitted);
   EXPECT_EQ(g.angles_deg[2], 0.0);
   EXPECT_GT(g.misfit_ratio, 0.5);
@@ -119,7 +138,10 @@ TEST_F(GeometryCalibrationTest, FindsTheTiltedPanelsPoseFromAKnownPart) {
   EXPECT_TRUE(back.tilted());
   EXPECT_NEAR(back.detector_rotation_deg, g.angles_deg[2], 1e-12);
   EXPECT_EQ(back.detector_pose_uncertainty_deg, g.uncertainty_deg);
-  EXPECT_TRUE(fs::exists(dir_ / "out" / "geometry.json"));
+  const nlohmann::json written = nlohmann::json::parse(std::ifstream(dir_ / "out" / "geometry.json"));
+  EXPECT_EQ(written["detector"]["leave_one_out"]["angles_deg"].size(), 3u);
+  EXPECT_EQ(written["detector"]["leave_one_out"]["uncertainty_deg"][1].get<double>(),
+            g.leave_one_out_uncertainty_deg[1]);
 }
 
 TEST_F(GeometryCalibrationTest, AFreeDimensionOrAWrongPartIsRefused) {

@@ -13,6 +13,8 @@
 
 #include <array>
 #include <filesystem>
+#include <string>
+#include <vector>
 
 namespace xgauge {
 
@@ -20,7 +22,17 @@ struct GeometryCalibration {
   Machine machine;              // the job's machine with the fitted pose and its uncertainties
   nlohmann::json machine_file;  // the job's machine file with the pose's keys added
   std::array<double, 3> angles_deg{};       // tilt_u, tilt_v, rotation
-  std::array<double, 3> uncertainty_deg{};  // their standard uncertainties
+  // Their standard uncertainties: for each angle the larger of the least
+  // squares' (statistical) and the leave-one-out jackknife's.
+  std::array<double, 3> uncertainty_deg{};
+  std::array<double, 3> statistical_uncertainty_deg{};
+  std::array<double, 3> leave_one_out_uncertainty_deg{};  // zeros: fewer than 3 left out
+  // The angles fitted without each radiograph that no other pose refers to.
+  struct LeftOut {
+    std::string radiograph;
+    std::array<double, 3> angles_deg{};
+  };
+  std::vector<LeftOut> leave_one_out;
   // Whether the turn in the panel's plane was fitted: only where a pose is
   // known or turned; free poses take it up exactly, and it is held.
   bool rotation_fitted = false;

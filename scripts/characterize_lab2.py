@@ -7,7 +7,11 @@ Usage: characterize_lab2.py XGAUGE LAB2_OUT JOBS_DIR OUT_DIR [MACHINE ...]
 
 LAB2_OUT holds lab2's machine folders (tools/lab2: `lab2.py grid -o
 LAB2_OUT`); a job per machine is written to JOBS_DIR/mNN.json and its
-output to OUT_DIR/mNN/. Prints a Markdown table.
+output to OUT_DIR/mNN/. Prints a Markdown table, then per machine the
+weight's and the Gaussian-equivalent width's errors in units of their
+stated standard uncertainties u (and u itself), and the pooled count of
+machines within 2u (issue 62's acceptance: at least 90 %); writes the same
+figures to OUT_DIR/coverage.json.
 """
 
 import json
@@ -38,6 +42,7 @@ def main():
                                    if (p / "lab2_truth.json").exists() and p.name[1:].isdigit())
     jobs.mkdir(parents=True, exist_ok=True)
     rows = []
+    coverage = []
     for name in names:
         machine = lab2 / name
         job = jobs / f"{name}.json"
@@ -74,6 +79,13 @@ def main():
             f"{truth['crosstalk']:.4f} / {xt['value']:.4f} ± {xt['uncertainty']:.4f} | "
             f"{true_dead}+{true_hot} / {bad['dead']}+{bad['hot']} ({bad['noisy']}) | "
             f"{h['noise_scale']:.2f} | {seconds:.0f} |")
+        coverage.append({
+            "machine": name, "true_shape": halo["shape"], "chosen": f"{s['shape']}/{s['border']}",
+            "weight": w, "weight_u": uw, "true_weight": tw,
+            "weight_error_u": (w - tw) / uw if uw > 0 else math.inf,
+            "sigma_eq_mm": se, "sigma_eq_u_mm": use, "true_sigma_eq_mm": ts,
+            "sigma_eq_error_u": (se - ts) / use if use > 0 else math.inf,
+            "beyond_half_panel": ts > 0.5 * width_mm})
         print(rows[-1], file=sys.stderr)
     print("| machine | true shape | true w | true σ_eq mm | chosen | w ± u (error, error/u) | "
           "σ_eq ± u mm (error, error/u) | lag true / est. | crosstalk true / est. | "
@@ -81,6 +93,25 @@ def main():
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(r)
+    if not coverage:
+        return
+    print()
+    print("| machine | true | chosen | weight error / u (u) | σ_eq error / u (u mm, u / σ_eq) |")
+    print("|---|---|---|---|---|")
+    for c in coverage:
+        print(f"| {c['machine']} | {c['true_shape']} | {c['chosen']} | {c['weight_error_u']:+.2f} "
+              f"({c['weight_u']:.5f}) | {c['sigma_eq_error_u']:+.2f} ({c['sigma_eq_u_mm']:.3f}, "
+              f"{100 * c['sigma_eq_u_mm'] / c['sigma_eq_mm']:.1f} %) |")
+    n = len(coverage)
+    weight_in = sum(abs(c["weight_error_u"]) <= 2 for c in coverage)
+    width_in = sum(abs(c["sigma_eq_error_u"]) <= 2 for c in coverage)
+    mean_rel_u = sum(c["sigma_eq_u_mm"] / c["sigma_eq_mm"] for c in coverage) / n
+    print(f"\nWithin 2u: weight {weight_in} of {n} ({100 * weight_in / n:.0f} %), "
+          f"width {width_in} of {n} ({100 * width_in / n:.0f} %); mean u / width "
+          f"{100 * mean_rel_u:.1f} %")
+    (out / "coverage.json").write_text(json.dumps(
+        {"machines": coverage, "weight_within_2u": weight_in, "width_within_2u": width_in,
+         "count": n, "mean_u_over_width": mean_rel_u}, indent=1) + "\n")
 
 
 if __name__ == "__main__":

@@ -7,8 +7,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <vector>
 
 namespace xgauge {
 namespace {
@@ -52,6 +54,14 @@ TEST(EdgeHalo, AGaussianHaloIsFoundWithItsBorderAndCoveringUncertainties) {
             3.0 * fit.scatter.sigma_uncertainty_mm);
   EXPECT_EQ(fit.candidates.size(), 6u);
   EXPECT_LT(fit.noise_scale, 1.2);  // the noise alone: the model is right
+  // The data is the model: the halves scatter about the full fit by their
+  // noise, about the profile's half-width (a half has half the bins), not
+  // by more.
+  const double term = fit.split_halves_equivalent_sigma_term_mm;
+  const double profile = std::sqrt(std::max(
+      0.0, fit.scatter.sigma_uncertainty_mm * fit.scatter.sigma_uncertainty_mm - term * term));
+  EXPECT_GT(term, 0.0);
+  EXPECT_LT(term, 3.0 * profile) << "halves' term " << term << " mm, profile " << profile << " mm";
 }
 
 TEST(EdgeHalo, TwoGaussiansAreToldFromOne) {
@@ -91,6 +101,50 @@ TEST(EdgeHalo, ATailedHalosWidthIsCoveredWhicheverKernelFitsIt) {
               std::abs(fit.kernel_choice_equivalent_sigma_change_mm));
     EXPECT_NE(fit.kernel_choice_shape, toString(fit.scatter.shape));
   }
+}
+
+// The halves' term in closed form: half the halves' difference where the
+// full fit is their mean; their root mean square deviation from the full
+// fit where it is not (lab2's m02: upper and lower halves 59.5 and 55.8 mm,
+// full 51.7 mm, half their difference 1.85 mm).
+TEST(EdgeHalo, TheHalvesTermIsTheirRootMeanSquareDeviationFromTheFullFit) {
+  using Halves = std::vector<double>;
+  EXPECT_DOUBLE_EQ(splitHalvesTerm(10.0, Halves{11.0, 9.0}), 1.0);
+  EXPECT_DOUBLE_EQ(splitHalvesTerm(10.0, Halves{9.0, 11.0, 9.0, 11.0}), 1.0);
+  EXPECT_DOUBLE_EQ(splitHalvesTerm(3.0, Halves{3.0, 3.0, 3.0, 3.0}), 0.0);
+  EXPECT_DOUBLE_EQ(splitHalvesTerm(3.0, Halves{}), 0.0);
+  EXPECT_NEAR(splitHalvesTerm(51.7, Halves{59.5, 55.8}), std::sqrt((7.8 * 7.8 + 4.1 * 4.1) / 2.0),
+              1e-12);
+  // = sqrt(half difference^2 + (halves' mean - full)^2)
+  EXPECT_NEAR(splitHalvesTerm(51.7, Halves{59.5, 55.8}), std::hypot(1.85, 57.65 - 51.7), 1e-12);
+  // Two pairs: the mean of their squares.
+  EXPECT_NEAR(splitHalvesTerm(0.0, Halves{1.0, 1.0, 3.0, -3.0}), std::sqrt(5.0), 1e-12);
+}
+
+// A panel whose halo differs between its upper and lower halves (weight
+// 0.10 above, 0.14 below): one kernel cannot be both. The upper and lower
+// halves' fits find about 0.10 and 0.14, the left and right ones (each
+// half above, half below) about the full fit's 0.12, so the halves' term
+// is about sqrt((0.02^2 + 0.02^2) / 4) = 0.014, and both halves' weights
+// lie within 2u of the estimate.
+TEST(EdgeHalo, HalvesThatDisagreeWidenTheUncertainty) {
+  ScatterModel upper, lower;
+  upper.weight = 0.10, upper.sigma_mm = 9.0, upper.border = HaloBorder::kOpen;
+  lower = upper, lower.weight = 0.14;
+  const Image t = plate(200, 180, 20, 95, 15, 165);
+  Image shot = upper.apply(t, 0.5, 1.0f);
+  const Image below = lower.apply(t, 0.5, 1.0f);
+  for (int y = 90; y < 180; ++y)
+    for (int x = 0; x < 200; ++x) shot(x, y) = below(x, y);
+  for (float& v : shot.pixels()) v *= 0.98f;
+  addNoise(shot, 0.004, 7);
+  const EdgeHaloFit fit = fitEdgeHalo(shot, 0.5, {});
+  EXPECT_NEAR(fit.split_halves_weight_term,
+              splitHalvesTerm(fit.scatter.weight, fit.split_halves_weight), 1e-12);
+  EXPECT_NEAR(fit.split_halves_weight_term, 0.02 / std::sqrt(2.0), 0.004) << fit.choice;
+  EXPECT_GE(fit.scatter.weight_uncertainty, fit.split_halves_weight_term);
+  EXPECT_LT(std::abs(fit.scatter.weight - upper.weight), 2.0 * fit.scatter.weight_uncertainty);
+  EXPECT_LT(std::abs(fit.scatter.weight - lower.weight), 2.0 * fit.scatter.weight_uncertainty);
 }
 
 TEST(EdgeHalo, AHaloWiderThanHalfThePanelIsRefusedWithItsFigures) {

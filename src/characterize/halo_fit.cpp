@@ -511,35 +511,54 @@ State refit(const EdgeModel& model, const Shape& s, const State& best, double lo
   return minimizeWidths(model, s, best.widths, low, high, -1, nullptr, 200);
 }
 
-// What the noise does not explain: the shot's upper and lower halves (each
-// with plate, edge and open beam) fitted on their own; half their
-// difference, the spread a full-shot estimate has from whatever varies
-// across the panel (the open field's shape, the gain), is added in
-// quadrature to each profile uncertainty.
+// What the noise does not explain: the shot's four halves (upper, lower,
+// left, right), each fitted on its own, the model still the whole shot's
+// (plate, edge and open beam) with the other half's bins left out; the
+// root mean square of their estimates' deviations from the full fit
+// (splitHalvesTerm) is added in quadrature to each profile uncertainty.
+// Half the difference of the upper and lower halves alone (the term
+// before) is the spread from whatever varies across the panel (the open
+// field's shape, the gain), but it cannot see an estimate that both
+// halves place elsewhere than the full shot does: on lab2's m02 (a tail
+// beyond the panel fitted by two Gaussians) they gave 59.5 and 55.8 mm
+// where the full shot gave 51.7, their half difference 1.8 mm. The left
+// and right halves see the halo from different sides of the edge (behind
+// the plate, beside it in the open beam), so a kernel of the wrong shape
+// fits them differently: 50.3 and 66.0 mm on m02 (truth 74.0). They are
+// not alike (a half may hold little of the plate), so a half's deviation
+// holds its own noise too: the right half of m06 moved the weight by 0.003.
 void addSplitHalves(const EdgeBins& bins, const EdgeHaloOptions& options, const Shape& s,
                     const State& best, double low, double high, EdgeHaloFit& out) {
+  const int nx = bins.weight.width(), ny = bins.weight.height();
   std::vector<ScatterModel> halves;
-  for (const int half : {0, 1}) {
+  for (const int half : {0, 1, 2, 3}) {
     EdgeBins part = bins;
-    const int ny = part.weight.height();
     for (int y = 0; y < ny; ++y)
-      if ((y < ny / 2) != (half == 0))
-        for (int x = 0; x < part.weight.width(); ++x) part.weight(x, y) = 0.0f;
+      for (int x = 0; x < nx; ++x) {
+        const bool first = half < 2 ? y < ny / 2 : x < nx / 2;
+        if (first != (half % 2 == 0)) part.weight(x, y) = 0.0f;
+      }
     const EdgeModel model(part, options.crosstalk, options.field);
     halves.push_back(toScatter(s, refit(model, s, best, low, high)));
   }
+  auto term = [&](auto value) {
+    std::array<double, 4> of{};
+    for (size_t i = 0; i < 4; ++i) of[i] = value(halves[i]);
+    return splitHalvesTerm(value(out.scatter), of);
+  };
   const int parameters = s.widths == 1 ? 2 : 4;
   for (int p = 0; p < parameters; ++p) {
-    const double half_difference = 0.5 * (parameterOf(halves[0], p) - parameterOf(halves[1], p));
-    const double u = uncertaintyOf(out.scatter, p);
-    setUncertainty(out.scatter, p, std::hypot(u, half_difference));
+    const double t = term([p](const ScatterModel& m) { return parameterOf(m, p); });
+    setUncertainty(out.scatter, p, std::hypot(uncertaintyOf(out.scatter, p), t));
   }
-  out.split_halves_equivalent_sigma_mm = {halves[0].equivalentSigmaMm(),
-                                          halves[1].equivalentSigmaMm()};
-  out.split_halves_weight = {halves[0].weight, halves[1].weight};
+  for (size_t i = 0; i < 4; ++i)
+    out.split_halves_weight[i] = halves[i].weight,
+    out.split_halves_equivalent_sigma_mm[i] = halves[i].equivalentSigmaMm();
+  out.split_halves_weight_term = term([](const ScatterModel& m) { return m.weight; });
+  out.split_halves_equivalent_sigma_term_mm =
+      term([](const ScatterModel& m) { return m.equivalentSigmaMm(); });
   out.equivalent_sigma_uncertainty_mm =
-      std::hypot(out.equivalent_sigma_uncertainty_mm,
-                 0.5 * (halves[0].equivalentSigmaMm() - halves[1].equivalentSigmaMm()));
+      std::hypot(out.equivalent_sigma_uncertainty_mm, out.split_halves_equivalent_sigma_term_mm);
 }
 
 // The flat cannot tell the tube's heel from a slope of the panel's gain
@@ -597,6 +616,13 @@ void addKernelChoice(size_t chosen, EdgeHaloFit& out) {
 }
 
 }  // namespace
+
+double splitHalvesTerm(double full, std::span<const double> halves) {
+  if (halves.empty()) return 0.0;
+  double sum2 = 0.0;
+  for (const double h : halves) sum2 += (h - full) * (h - full);
+  return std::sqrt(sum2 / static_cast<double>(halves.size()));
+}
 
 EdgeHaloFit fitEdgeHalo(const Image& corrected, double pitch_mm, const EdgeHaloOptions& options) {
   const EdgeBins bins = binEdgeShot(corrected, pitch_mm);

@@ -27,6 +27,7 @@
 #include <filesystem>
 #include <functional>
 #include <optional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -93,9 +94,11 @@ struct EdgeHaloFit {
   std::string choice;  // which was chosen and why
   int binning = 1;
   int bins = 0;
-  // The upper and lower halves fitted on their own (the chosen shape): half
-  // their difference is in the uncertainties too.
-  std::array<double, 2> split_halves_weight{}, split_halves_equivalent_sigma_mm{};
+  // The upper, lower, left and right halves fitted on their own (the
+  // chosen shape), and the term they add in quadrature to the
+  // uncertainties: splitHalvesTerm of the full fit's value and theirs.
+  std::array<double, 4> split_halves_weight{}, split_halves_equivalent_sigma_mm{};
+  double split_halves_weight_term = 0.0, split_halves_equivalent_sigma_term_mm = 0.0;
   // The chosen shape fitted again in a field whose heel's share of the
   // flat's slope is moved by its standard uncertainty (image/open_beam.h):
   // the weight's and the Gaussian-equivalent width's changes, in the
@@ -130,11 +133,25 @@ struct EdgeHaloOptions {
 // mask (1 open, 0 behind the plate; pixels within a bin of its edge left
 // out), binned to about 256 px. Chooses by BIC on the noise-scaled chi2;
 // uncertainties from the profile of the loss (delta chi2 / s^2 = 1), with
-// half the difference of the shot's upper and lower halves' estimates
-// added in quadrature.
+// the halves' term (splitHalvesTerm), the heel's share and the kernel's
+// choice added in quadrature.
 // Throws Error naming the step and the figures if there is no plate, no open
 // beam, or the halo is wider than max_sigma_fraction of the shorter side.
 EdgeHaloFit fitEdgeHalo(const Image& corrected, double pitch_mm, const EdgeHaloOptions& options);
+
+// The split halves' term of a parameter: the root mean square of the
+// halves' estimates' deviations from the full shot's,
+//   sqrt(mean over the halves of (half - full)^2).
+// For one pair (upper and lower) it is
+//   sqrt(((upper - lower) / 2)^2 + ((upper + lower) / 2 - full)^2),
+// the delete-half jackknife's mean squared error: its variance plus its
+// bias estimate squared (the halves' mean less the full fit). Where the
+// data is the model, the full fit is about each pair's mean and the term
+// is about half their difference, the noise of a half; where the kernel
+// does not describe the shot, the estimate moves with the part of the
+// panel it is fitted to, and the full fit is one more such part. 0 for
+// no halves.
+double splitHalvesTerm(double full, std::span<const double> halves);
 
 struct InputFile {
   std::string file, sha256;

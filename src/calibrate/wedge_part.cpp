@@ -141,26 +141,28 @@ void knownWedgeInfluences(const WedgeCalibrationJob& job, const PartCalibrationJ
   };
   const ScatterModel& scatter = out.scatter;
   if (scatter.enabled()) {
-    auto without = [&](double weight, double sigma_mm, double heel = OpenBeamField::kHeelShare) {
+    // The width moves as the measurement's budget moves it: the whole
+    // kernel, its Gaussian-equivalent sigma by that sigma's u.
+    auto without = [&](double weight, double width_scale,
+                       double heel = OpenBeamField::kHeelShare) {
       return out.primaryWith(normalized, machine.pitch_u_mm, job.radiograph.white_region, weight,
-                             sigma_mm, heel);
+                             width_scale, heel);
     };
+    const double sigma_eq = scatter.equivalentSigmaMm(),
+                 u_eq = scatter.equivalentSigmaUncertaintyMm();
     propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
-              knownWedgeInputs(
-                  job, without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),
-                  job.caliper),
+              knownWedgeInputs(job, without(scatter.weight + scatter.weight_uncertainty, 1.0),
+                               job.caliper),
               theta);
-    propagate(kScatterWidthInfluence, scatter.sigma_mm, scatter.sigma_uncertainty_mm,
-              knownWedgeInputs(
-                  job, without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
-                  job.caliper),
+    propagate(kScatterWidthInfluence, sigma_eq, u_eq,
+              knownWedgeInputs(job, without(scatter.weight, 1.0 + u_eq / sigma_eq), job.caliper),
               theta);
     if (out.open_beam.sloped())
       propagate(kOpenBeamHeelInfluence, OpenBeamField::kHeelShare,
                 OpenBeamField::kHeelShareUncertainty,
                 knownWedgeInputs(
                     job,
-                    without(scatter.weight, scatter.sigma_mm,
+                    without(scatter.weight, 1.0,
                             OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty),
                     job.caliper),
                 theta, "1");

@@ -3,6 +3,7 @@
 #include "xgauge/image/blur.h"
 #include "xgauge/image/stats.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
 
@@ -71,6 +72,9 @@ ScatterModel ScatterModel::fromConfig(const ConfigNode& node) {
         uncertainty(node, "sigma2_uncertainty_mm", 0.1 * out.sigma2_mm, 1e4);
     out.fraction2_uncertainty = uncertainty(node, "fraction2_uncertainty", 0.05, 1.0);
   }
+  if (out.shape != HaloShape::kGaussian)
+    out.equivalent_sigma_uncertainty_mm =
+        uncertainty(node, "equivalent_sigma_uncertainty_mm", 0.0, 1e4);
   return out;
 }
 
@@ -93,6 +97,8 @@ nlohmann::json ScatterModel::toJson() const {
     out["sigma2_uncertainty_mm"] = sigma2_uncertainty_mm;
     out["fraction2_uncertainty"] = fraction2_uncertainty;
   }
+  if (shape != HaloShape::kGaussian && equivalent_sigma_uncertainty_mm > 0.0)
+    out["equivalent_sigma_uncertainty_mm"] = equivalent_sigma_uncertainty_mm;
   return out;
 }
 
@@ -127,6 +133,35 @@ double ScatterModel::equivalentSigmaMm() const {
                        3.0 * tail_fraction * tail_length_mm * tail_length_mm);
   }
   return sigma_mm;
+}
+
+double ScatterModel::equivalentSigmaUncertaintyMm() const {
+  if (shape == HaloShape::kGaussian) return sigma_uncertainty_mm;
+  if (equivalent_sigma_uncertainty_mm > 0.0) return equivalent_sigma_uncertainty_mm;
+  const double at = equivalentSigmaMm();
+  double squares = 0.0;
+  auto moved = [&](auto move) {
+    ScatterModel m = *this;
+    move(m);
+    squares += std::pow(m.equivalentSigmaMm() - at, 2);
+  };
+  moved([&](ScatterModel& m) { m.sigma_mm += sigma_uncertainty_mm; });
+  if (shape == HaloShape::kTwoGauss) {
+    moved([&](ScatterModel& m) { m.sigma2_mm += sigma2_uncertainty_mm; });
+    moved([&](ScatterModel& m) { m.fraction2 = std::min(1.0, m.fraction2 + fraction2_uncertainty); });
+  } else {
+    moved([&](ScatterModel& m) { m.tail_length_mm += tail_length_uncertainty_mm; });
+    moved([&](ScatterModel& m) {
+      m.tail_fraction = std::min(1.0, m.tail_fraction + tail_fraction_uncertainty);
+    });
+  }
+  return std::sqrt(squares);
+}
+
+ScatterModel ScatterModel::withWidthsScaled(double factor) const {
+  ScatterModel out = *this;
+  out.sigma_mm *= factor, out.sigma2_mm *= factor, out.tail_length_mm *= factor;
+  return out;
 }
 
 namespace {

@@ -149,13 +149,20 @@ void scatterComponents(const InfluenceSource& source, InfluenceMoves& out) {
         in.job.scatter.weight += amount * u;
       },
       curves ? curves->weight_plus_u : std::nullopt);
+  // The width: the whole kernel scaled so that its Gaussian-equivalent
+  // sigma moves by that sigma's u (a two-width kernel's u includes what the
+  // characterisation's second estimates and kernel choice found; moving the
+  // core alone would leave it out).
+  const double sigma_eq = scatter.equivalentSigmaMm();
+  const double u_eq = scatter.equivalentSigmaUncertaintyMm();
   withInputs(
       source, out, Propagation::kLinearised, "scatter width",
-      fmt::format("sigma = {:.4g} +- {:.2g} mm{}", scatter.sigma_mm, scatter.sigma_uncertainty_mm,
+      fmt::format("{} = {:.4g} +- {:.2g} mm{}",
+                  scatter.shape == HaloShape::kGaussian ? "sigma" : "sigma_eq", sigma_eq, u_eq,
                   with_curve),
-      "mm", scatter.sigma_uncertainty_mm,
-      [u = scatter.sigma_uncertainty_mm](MeasurementInputs& in, double amount) {
-        in.job.scatter.sigma_mm += amount * u;
+      "mm", u_eq,
+      [relative = u_eq / sigma_eq](MeasurementInputs& in, double amount) {
+        in.job.scatter = in.job.scatter.withWidthsScaled(1.0 + amount * relative);
       },
       curves ? curves->sigma_plus_u : std::nullopt);
 }

@@ -71,6 +71,8 @@ struct Scene {
   // material file's "scatter" block, with `curve_moves` when not null.
   std::optional<ScatterModel> scatter;
   bool scatter_in_job = true;
+  // Whether the lab adds the scatter to the shots without flat frames too.
+  bool halo_in_images = false;
   nlohmann::json curve_moves = nullptr;
   std::string bounds =
       R"({"rotation_deg": [[-5, 5], [15, 35], [-5, 5]], "centre_mm": [[-30, 30], [-30, 30], [470, 530]]})";
@@ -184,7 +186,7 @@ class Uncertainty : public ::testing::Test {
         }
       if (name != "c") previous = image;
       // With flat frames the lab adds the job's halo (in a uniform field).
-      if (s.flat_slope_per_mm != 0.0 && s.scatter)
+      if ((s.flat_slope_per_mm != 0.0 || s.halo_in_images) && s.scatter)
         image = s.scatter->apply(std::move(image), s.machine.pitch_u_mm);
       if (s.flat_slope_per_mm != 0.0)
         for (int y = 0; y < image.height(); ++y)
@@ -775,6 +777,43 @@ TEST_F(Uncertainty, TheFlatsSlopeThatMayBeTheHeelIsInTheBudget) {
   const MeasurementResult plain = measureScene(uniform);
   for (const auto& d : plain.uncertainty.dimensions)
     for (const auto& c : d.components) EXPECT_NE(c.name, "open beam's heel");
+}
+
+// A two-width halo's width in the budget: the whole kernel scaled so that
+// its Gaussian-equivalent sigma moves by the stated u of that sigma (a
+// characterisation's, its second estimates and kernel choice included),
+// and the re-solve with the kernel so scaled moves each dimension as the
+// component's sensitivity says.
+TEST_F(Uncertainty, ATwoWidthHalosEquivalentWidthMovesTheWholeKernel) {
+  Scene scene;
+  scene.scatter = ScatterModel{};
+  scene.scatter->weight = 0.15, scene.scatter->shape = HaloShape::kTwoGauss;
+  scene.scatter->border = HaloBorder::kOpen;
+  scene.scatter->sigma_mm = 6.0, scene.scatter->sigma2_mm = 20.0, scene.scatter->fraction2 = 0.3;
+  scene.scatter->sigma_uncertainty_mm = 0.1, scene.scatter->sigma2_uncertainty_mm = 0.5;
+  scene.scatter->fraction2_uncertainty = 0.01;
+  scene.scatter->equivalent_sigma_uncertainty_mm = 0.5;
+  scene.halo_in_images = true;
+  const MeasurementResult nominal = measureScene(scene);
+  const double sigma_eq = scene.scatter->equivalentSigmaMm();
+  MeasurementInputs wider = *inputs_;
+  wider.job.scatter = wider.job.scatter.withWidthsScaled(1.0 + 0.5 / sigma_eq);
+  ForwardModel moved_model(wider);
+  MeasureOptions least_squares_only;
+  least_squares_only.search_poses = false;
+  least_squares_only.joint_search = false;
+  const MeasurementResult moved = measure(moved_model, nominal.theta, least_squares_only);
+  double largest = 0.0;
+  for (size_t k = 0; k < nominal.dimensions.size(); ++k) {
+    const std::string& name = nominal.dimensions[k].name;
+    const UncertaintyComponent& width = component(nominal, name, "scatter width");
+    EXPECT_EQ(width.standard_uncertainty, 0.5) << name;
+    const double predicted = 0.5 * width.sensitivity;
+    const double actual = moved.dimensions[k].value - nominal.dimensions[k].value;
+    EXPECT_NEAR(actual, predicted, 0.2 * std::abs(predicted) + 2e-4) << name;
+    largest = std::max(largest, std::abs(predicted));
+  }
+  EXPECT_GT(largest, 1e-3);  // the halo's width matters to the sizes
 }
 
 // A scatter the job takes from its material, whose file says how the curve

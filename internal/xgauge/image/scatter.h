@@ -83,6 +83,10 @@ struct ScatterModel {
   // enter a measurement's uncertainty budget.
   double weight_uncertainty = 0.0;
   double sigma_uncertainty_mm = 0.0;
+  // A two-width kernel's Gaussian-equivalent width's standard uncertainty,
+  // where a characterisation stated one (its second estimates and the
+  // kernel's choice included); 0: none stated.
+  double equivalent_sigma_uncertainty_mm = 0.0;
 
   bool enabled() const { return weight > 0.0; }
   double sigmaPx(double pitch_mm) const { return sigma_mm / pitch_mm; }
@@ -96,6 +100,13 @@ struct ScatterModel {
   // sqrt(E[r^2] / 2): the sigma of the Gaussian with the kernel's second
   // moment (lab2's "gaussian_equivalent_sigma_mm").
   double equivalentSigmaMm() const;
+  // The standard uncertainty of equivalentSigmaMm(): a Gaussian's sigma's;
+  // a two-width kernel's stated one, or without it its widths' and
+  // fraction's uncertainties propagated (each moved alone, in quadrature).
+  double equivalentSigmaUncertaintyMm() const;
+  // The same kernel with every width times `factor` (its equivalent sigma
+  // too): how an uncertain width moves the whole kernel.
+  ScatterModel withWidthsScaled(double factor) const;
 
   // Job key "scatter": {"weight": w in [0, 0.9], optional "shape"
   // ("gaussian" by default), the shape's keys: "sigma_mm" in [0.01, 1e4]
@@ -105,7 +116,8 @@ struct ScatterModel {
   // default, "open"); optional uncertainties "weight_uncertainty",
   // "sigma_uncertainty_mm" (of sigma_mm or sigma1_mm),
   // "tail_fraction_uncertainty", "tail_length_uncertainty_mm",
-  // "sigma2_uncertainty_mm", "fraction2_uncertainty"} (Error at the node
+  // "sigma2_uncertainty_mm", "fraction2_uncertainty",
+  // "equivalent_sigma_uncertainty_mm" (two-width kernels)} (Error at the node
   // otherwise; another shape's key is an unknown key at Config::finish).
   static ScatterModel fromConfig(const ConfigNode& node);
   // The same keys, all written; a mirrored Gaussian writes exactly the four

@@ -158,6 +158,16 @@ double ScatterModel::equivalentSigmaUncertaintyMm() const {
   return std::sqrt(squares);
 }
 
+bool ScatterModel::sameKernel(const ScatterModel& other) const {
+  auto same = [](double a, double b) {
+    return std::abs(a - b) <= 1e-9 * std::max({std::abs(a), std::abs(b), 1e-12});
+  };
+  return shape == other.shape && border == other.border && same(weight, other.weight) &&
+         same(sigma_mm, other.sigma_mm) && same(sigma2_mm, other.sigma2_mm) &&
+         same(fraction2, other.fraction2) && same(tail_fraction, other.tail_fraction) &&
+         same(tail_length_mm, other.tail_length_mm);
+}
+
 ScatterModel ScatterModel::withWidthsScaled(double factor) const {
   ScatterModel out = *this;
   out.sigma_mm *= factor, out.sigma2_mm *= factor, out.tail_length_mm *= factor;

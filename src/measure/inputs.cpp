@@ -199,6 +199,15 @@ MeasurementInputs loadJobInputs(const ConfigNode& root, const std::filesystem::p
       in.scatter_curves = std::move(scatter.curves);
       spdlog::info("{}: the scatter its calibration found: weight {:.4f}, sigma {:.1f} mm",
                    in.job.material_file.string(), in.job.scatter.weight, in.job.scatter.sigma_mm);
+    } else if (found && detector_halo) {
+      // A material calibrated with this very halo (the same detector file's)
+      // moved its curve with the halo's weight and width: the budget moves
+      // both together, as for the scatter a calibration found; counted
+      // apart, a halo's uncertainty entered U twice with the sign that
+      // cancels dropped (docs/method.md, "The scatter from the calibration
+      // shot").
+      MaterialScatter scatter = materialScatterFromConfig(*found);
+      if (scatter.model.sameKernel(in.job.scatter)) in.scatter_curves = std::move(scatter.curves);
     }
     material.finish();
   }

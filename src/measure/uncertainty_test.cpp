@@ -852,6 +852,25 @@ TEST_F(Uncertainty, TheScatterAndTheCurveItCalibratedMoveTogether) {
                 0.05 * m.contribution + 1e-4)
         << name;
   }
+  // A characterised detector whose halo the material was calibrated with
+  // (the same kernel in its detector file and in the material's scatter):
+  // the job takes the detector's halo and moves it with the curve, as above.
+  Scene characterised = together;
+  characterised.detector_file =
+      nlohmann::json{{"halo", {{"scatter", apart.scatter->toJson()}}}}.dump();
+  const MeasurementResult same = measureScene(characterised);
+  ASSERT_TRUE(inputs_->scatter_curves.has_value());
+  for (const auto& d : correlated.dimensions)
+    EXPECT_NEAR(component(same, d.name, "scatter weight").contribution,
+                component(correlated, d.name, "scatter weight").contribution, 1e-9)
+        << d.name;
+  // Another halo than the one the curve was calibrated with: apart.
+  ScatterModel other = *apart.scatter;
+  other.weight = 0.06;
+  characterised.detector_file =
+      nlohmann::json{{"halo", {{"scatter", other.toJson()}}}}.dump();
+  measureScene(characterised);
+  EXPECT_FALSE(inputs_->scatter_curves.has_value());
 }
 
 // A material whose file lists how its curve moves with the inputs of its

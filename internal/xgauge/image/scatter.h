@@ -107,6 +107,9 @@ struct ScatterModel {
   // The same kernel with every width times `factor` (its equivalent sigma
   // too): how an uncertain width moves the whole kernel.
   ScatterModel withWidthsScaled(double factor) const;
+  // Whether `other` is this kernel (shape, border, weight, widths and
+  // shares to 1e-9 relative; the uncertainties are not compared).
+  bool sameKernel(const ScatterModel& other) const;
 
   // Job key "scatter": {"weight": w in [0, 0.9], optional "shape"
   // ("gaussian" by default), the shape's keys: "sigma_mm" in [0.01, 1e4]

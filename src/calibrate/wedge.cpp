@@ -267,13 +267,13 @@ void combineCurveUncertainty(const std::string& name, WedgeCalibration& out) {
 
 Image WedgeCalibration::primaryWith(const Image& radiograph, double pitch_mm,
                                     const PixelRect& white_region, double weight,
-                                    double width_scale, double heel_share) const {
+                                    double sigma_eq_mm, double heel_share) const {
   if (halo) {
     HaloFit moved = *halo;
     moved.field = moved.field.withHeelShare(heel_share);
-    return moved.primaryWith(radiograph, pitch_mm, weight, scatter.sigma_mm * width_scale);
+    return moved.primaryWith(radiograph, pitch_mm, weight, sigma_eq_mm);
   }
-  ScatterModel moved = scatter.withWidthsScaled(width_scale);
+  ScatterModel moved = scatter.withEquivalentSigma(sigma_eq_mm);
   moved.weight = weight;
   return moved.remove(radiograph, pitch_mm, white_region, open_beam.withHeelShare(heel_share));
 }
@@ -312,26 +312,26 @@ void rampInfluences(const WedgeCalibrationJob& job, const Machine& geometry,
   };
   const ScatterModel& scatter = out.scatter;
   if (scatter.enabled()) {
-    // The width moves as the measurement's budget moves it: the whole
-    // kernel, its Gaussian-equivalent sigma by that sigma's u.
-    auto without = [&](double weight, double width_scale,
+    // The width moves as the measurement's budget moves it: the kernel's
+    // Gaussian-equivalent sigma by that sigma's u, through its wide part.
+    auto without = [&](double weight, double sigma_eq_mm,
                        double heel = OpenBeamField::kHeelShare) {
       Image removed = out.primaryWith(normalized, machine.pitch_u_mm, spec.white_region, weight,
-                                      width_scale, heel);
+                                      sigma_eq_mm, heel);
       return out.turned ? transposed(removed) : removed;
     };
     const double sigma_eq = scatter.equivalentSigmaMm(),
                  u_eq = scatter.equivalentSigmaUncertaintyMm();
     propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
-              without(scatter.weight + scatter.weight_uncertainty, 1.0), job.max_thickness_mm,
+              without(scatter.weight + scatter.weight_uncertainty, sigma_eq), job.max_thickness_mm,
               job.ramp_length_mm);
     propagate(kScatterWidthInfluence, sigma_eq, u_eq,
-              without(scatter.weight, 1.0 + u_eq / sigma_eq), job.max_thickness_mm,
+              without(scatter.weight, sigma_eq + u_eq), job.max_thickness_mm,
               job.ramp_length_mm);
     if (out.open_beam.sloped())
       propagate(kOpenBeamHeelInfluence, OpenBeamField::kHeelShare,
                 OpenBeamField::kHeelShareUncertainty,
-                without(scatter.weight, 1.0,
+                without(scatter.weight, sigma_eq,
                         OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty),
                 job.max_thickness_mm, job.ramp_length_mm, "1");
   }

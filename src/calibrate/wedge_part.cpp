@@ -141,28 +141,28 @@ void knownWedgeInfluences(const WedgeCalibrationJob& job, const PartCalibrationJ
   };
   const ScatterModel& scatter = out.scatter;
   if (scatter.enabled()) {
-    // The width moves as the measurement's budget moves it: the whole
-    // kernel, its Gaussian-equivalent sigma by that sigma's u.
-    auto without = [&](double weight, double width_scale,
+    // The width moves as the measurement's budget moves it: the kernel's
+    // Gaussian-equivalent sigma by that sigma's u, through its wide part.
+    auto without = [&](double weight, double sigma_eq_mm,
                        double heel = OpenBeamField::kHeelShare) {
       return out.primaryWith(normalized, machine.pitch_u_mm, job.radiograph.white_region, weight,
-                             width_scale, heel);
+                             sigma_eq_mm, heel);
     };
     const double sigma_eq = scatter.equivalentSigmaMm(),
                  u_eq = scatter.equivalentSigmaUncertaintyMm();
     propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
-              knownWedgeInputs(job, without(scatter.weight + scatter.weight_uncertainty, 1.0),
+              knownWedgeInputs(job, without(scatter.weight + scatter.weight_uncertainty, sigma_eq),
                                job.caliper),
               theta);
     propagate(kScatterWidthInfluence, sigma_eq, u_eq,
-              knownWedgeInputs(job, without(scatter.weight, 1.0 + u_eq / sigma_eq), job.caliper),
+              knownWedgeInputs(job, without(scatter.weight, sigma_eq + u_eq), job.caliper),
               theta);
     if (out.open_beam.sloped())
       propagate(kOpenBeamHeelInfluence, OpenBeamField::kHeelShare,
                 OpenBeamField::kHeelShareUncertainty,
                 knownWedgeInputs(
                     job,
-                    without(scatter.weight, 1.0,
+                    without(scatter.weight, sigma_eq,
                             OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty),
                     job.caliper),
                 theta, "1");

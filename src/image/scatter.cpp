@@ -168,8 +168,22 @@ bool ScatterModel::sameKernel(const ScatterModel& other) const {
          same(tail_length_mm, other.tail_length_mm);
 }
 
-ScatterModel ScatterModel::withWidthsScaled(double factor) const {
+ScatterModel ScatterModel::withEquivalentSigma(double target_mm) const {
   ScatterModel out = *this;
+  if (shape == HaloShape::kGaussian) {
+    out.sigma_mm = target_mm;
+    return out;
+  }
+  // sigma_eq^2 = (1 - f) s^2 + f c w^2: c = 1 for a second Gaussian of
+  // sigma w, 3 for an exponential tail of length w (E[r^2] = 6 w^2).
+  const bool two = shape == HaloShape::kTwoGauss;
+  const double f = two ? fraction2 : tail_fraction, c = two ? 1.0 : 3.0;
+  const double wide2 = (target_mm * target_mm - (1.0 - f) * sigma_mm * sigma_mm) / (f * c);
+  if (f > 1e-6 && wide2 > 0.0) {
+    (two ? out.sigma2_mm : out.tail_length_mm) = std::sqrt(wide2);
+    return out;
+  }
+  const double factor = target_mm / equivalentSigmaMm();
   out.sigma_mm *= factor, out.sigma2_mm *= factor, out.tail_length_mm *= factor;
   return out;
 }

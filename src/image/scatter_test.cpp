@@ -300,7 +300,7 @@ TEST(HaloConfig, ShapesBordersAndTheirErrors) {
 // the whole kernel by: a Gaussian's sigma's; a two-width kernel's stated
 // one; without it each width's and the fraction's moved alone, in
 // quadrature (closed forms of sqrt((1 - f) s1^2 + f s2^2)).
-TEST(HaloConfig, TheEquivalentWidthsUncertaintyAndTheScaledKernel) {
+TEST(HaloConfig, TheEquivalentWidthsUncertaintyAndTheMovedKernel) {
   const ScatterModel gaussian = ScatterModel::fromConfig(
       ConfigNode::parse(R"({"weight": 0.1, "sigma_mm": 30, "sigma_uncertainty_mm": 1.5})", "j"));
   EXPECT_EQ(gaussian.equivalentSigmaUncertaintyMm(), 1.5);
@@ -321,15 +321,27 @@ TEST(HaloConfig, TheEquivalentWidthsUncertaintyAndTheScaledKernel) {
   EXPECT_EQ(two.equivalentSigmaUncertaintyMm(), 9.0);
   const ScatterModel back = ScatterModel::fromConfig(ConfigNode::fromJson(two.toJson(), "x"));
   EXPECT_EQ(back.equivalent_sigma_uncertainty_mm, 9.0);
-  // Every width scaled: the equivalent sigma by the same factor, the shares kept.
-  const ScatterModel wider = two.withWidthsScaled(1.2);
-  EXPECT_NEAR(wider.equivalentSigmaMm(), 1.2 * at, 1e-12);
+  // The equivalent sigma moved through the wide part: the core and the
+  // shares kept, the second sigma what the closed form needs.
+  const ScatterModel wider = two.withEquivalentSigma(at + 9.0);
+  EXPECT_NEAR(wider.equivalentSigmaMm(), at + 9.0, 1e-12);
+  EXPECT_EQ(wider.sigma_mm, 20.0);
   EXPECT_EQ(wider.fraction2, 0.35);
   EXPECT_EQ(wider.weight, 0.1);
+  EXPECT_NEAR(wider.sigma2_mm, std::sqrt((std::pow(at + 9.0, 2) - 0.65 * 400.0) / 0.35), 1e-12);
   ScatterModel tail;
   tail.weight = 0.12, tail.shape = HaloShape::kGaussExp, tail.sigma_mm = 30.0;
   tail.tail_fraction = 0.25, tail.tail_length_mm = 80.0;
-  EXPECT_NEAR(tail.withWidthsScaled(0.5).equivalentSigmaMm(), 0.5 * 73.9932429347437, 1e-9);
+  const ScatterModel shorter = tail.withEquivalentSigma(60.0);
+  EXPECT_NEAR(shorter.equivalentSigmaMm(), 60.0, 1e-12);
+  EXPECT_EQ(shorter.sigma_mm, 30.0);
+  EXPECT_NEAR(shorter.tail_length_mm, std::sqrt((3600.0 - 0.75 * 900.0) / 0.75), 1e-12);
+  // Below what the core alone gives, the wide part cannot reach it: every
+  // width scaled instead.
+  const ScatterModel narrow = tail.withEquivalentSigma(20.0);
+  EXPECT_NEAR(narrow.equivalentSigmaMm(), 20.0, 1e-12);
+  EXPECT_NEAR(narrow.sigma_mm / 30.0, narrow.tail_length_mm / 80.0, 1e-12);
+  EXPECT_EQ(gaussian.withEquivalentSigma(31.0).sigma_mm, 31.0);
 }
 
 }  // namespace

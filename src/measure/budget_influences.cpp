@@ -149,10 +149,11 @@ void scatterComponents(const InfluenceSource& source, InfluenceMoves& out) {
         in.job.scatter.weight += amount * u;
       },
       curves ? curves->weight_plus_u : std::nullopt);
-  // The width: the whole kernel scaled so that its Gaussian-equivalent
-  // sigma moves by that sigma's u (a two-width kernel's u includes what the
-  // characterisation's second estimates and kernel choice found; moving the
-  // core alone would leave it out).
+  // The width: the kernel's Gaussian-equivalent sigma moved by that
+  // sigma's u (a two-width kernel's u includes what the characterisation's
+  // second estimates and kernel choice found), through its wide part: the
+  // core, which the edge pins, keeps its place (ScatterModel::
+  // withEquivalentSigma).
   const double sigma_eq = scatter.equivalentSigmaMm();
   const double u_eq = scatter.equivalentSigmaUncertaintyMm();
   withInputs(
@@ -161,8 +162,8 @@ void scatterComponents(const InfluenceSource& source, InfluenceMoves& out) {
                   scatter.shape == HaloShape::kGaussian ? "sigma" : "sigma_eq", sigma_eq, u_eq,
                   with_curve),
       "mm", u_eq,
-      [relative = u_eq / sigma_eq](MeasurementInputs& in, double amount) {
-        in.job.scatter = in.job.scatter.withWidthsScaled(1.0 + amount * relative);
+      [sigma_eq, u_eq](MeasurementInputs& in, double amount) {
+        in.job.scatter = in.job.scatter.withEquivalentSigma(sigma_eq + amount * u_eq);
       },
       curves ? curves->sigma_plus_u : std::nullopt);
 }

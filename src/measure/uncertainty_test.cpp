@@ -795,7 +795,7 @@ TEST_F(Uncertainty, TheFlatsSlopeThatMayBeTheHeelIsInTheBudget) {
 // characterisation's, its second estimates and kernel choice included),
 // and the re-solve with the kernel so scaled moves each dimension as the
 // component's sensitivity says.
-TEST_F(Uncertainty, ATwoWidthHalosEquivalentWidthMovesTheWholeKernel) {
+TEST_F(Uncertainty, ATwoWidthHalosEquivalentWidthMovesItsWidePart) {
   Scene scene;
   scene.scatter = ScatterModel{};
   scene.scatter->weight = 0.15, scene.scatter->shape = HaloShape::kTwoGauss;
@@ -808,7 +808,7 @@ TEST_F(Uncertainty, ATwoWidthHalosEquivalentWidthMovesTheWholeKernel) {
   const MeasurementResult nominal = measureScene(scene);
   const double sigma_eq = scene.scatter->equivalentSigmaMm();
   MeasurementInputs wider = *inputs_;
-  wider.job.scatter = wider.job.scatter.withWidthsScaled(1.0 + 0.5 / sigma_eq);
+  wider.job.scatter = wider.job.scatter.withEquivalentSigma(sigma_eq + 0.5);
   for (const auto& d : nominal.dimensions)
     EXPECT_EQ(component(nominal, d.name, "scatter width").standard_uncertainty, 0.5) << d.name;
   // The halo's width matters to the sizes.

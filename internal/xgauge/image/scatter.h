@@ -104,9 +104,13 @@ struct ScatterModel {
   // a two-width kernel's stated one, or without it its widths' and
   // fraction's uncertainties propagated (each moved alone, in quadrature).
   double equivalentSigmaUncertaintyMm() const;
-  // The same kernel with every width times `factor` (its equivalent sigma
-  // too): how an uncertain width moves the whole kernel.
-  ScatterModel withWidthsScaled(double factor) const;
+  // The same kernel with its Gaussian-equivalent sigma at `target_mm`: a
+  // Gaussian's sigma; a two-width kernel's wide part (the second sigma, the
+  // tail's length), its core and shares kept: the core is what an edge
+  // shot pins, the wide part what it sees least (beyond the panel, a
+  // level). Where the wide part's share is nil or cannot reach the target,
+  // every width scaled by target / sigma_eq.
+  ScatterModel withEquivalentSigma(double target_mm) const;
   // Whether `other` is this kernel (shape, border, weight, widths and
   // shares to 1e-9 relative; the uncertainties are not compared).
   bool sameKernel(const ScatterModel& other) const;

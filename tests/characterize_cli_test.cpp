@@ -100,26 +100,6 @@ TEST_F(Characterize, MeasuresTheDetectorAndAMachineNamesIt) {
   EXPECT_NEAR(file->halo->weight, s["weight"].get<double>(), 1e-12);
 }
 
-// A two-width halo's equivalent width carries the characterisation's u
-// (its second estimates and the kernel's choice included), which the
-// measurement's budget moves the whole kernel by; a Gaussian's is its
-// sigma's, whatever the halo states beside it.
-TEST_F(Characterize, ADetectorFileGivesTheHalosEquivalentWidthItsUncertainty) {
-  const std::string two = write("two.json", R"({"halo": {
-    "gaussian_equivalent_sigma_mm": 51.4, "gaussian_equivalent_sigma_uncertainty_mm": 11.2,
-    "scatter": {"weight": 0.12, "weight_uncertainty": 0.0002, "shape": "two_gauss",
-                "border": "open", "sigma1_mm": 30, "sigma_uncertainty_mm": 0.5,
-                "sigma2_mm": 90, "sigma2_uncertainty_mm": 3, "fraction2": 0.22,
-                "fraction2_uncertainty": 0.01}}})");
-  const DetectorFile d = loadDetectorFile(two);
-  ASSERT_TRUE(d.halo);
-  EXPECT_EQ(d.halo->equivalentSigmaUncertaintyMm(), 11.2);
-  const std::string gaussian = write("gaussian.json", R"({"halo": {
-    "gaussian_equivalent_sigma_mm": 50, "gaussian_equivalent_sigma_uncertainty_mm": 4,
-    "scatter": {"weight": 0.12, "sigma_mm": 50, "sigma_uncertainty_mm": 0.7}}})");
-  EXPECT_EQ(loadDetectorFile(gaussian).halo->equivalentSigmaUncertaintyMm(), 0.7);
-}
-
 TEST_F(Characterize, AStepThatCannotDecideFailsWithoutOutput) {
   const Image open(kWidth, kHeight, 1.0f), none(kWidth, kHeight, 0.0f);
   frame("dark.tif", none, 1), frame("dark2.tif", none, 2), frame("flat.tif", open, 3);

@@ -266,15 +266,15 @@ void combineCurveUncertainty(const std::string& name, WedgeCalibration& out) {
 }
 
 Image WedgeCalibration::primaryWith(const Image& radiograph, double pitch_mm,
-                                    const PixelRect& white_region, double weight,
-                                    double sigma_eq_mm, double heel_share) const {
+                                    const PixelRect& white_region, double weight, double sigma_mm,
+                                    double heel_share) const {
   if (halo) {
     HaloFit moved = *halo;
     moved.field = moved.field.withHeelShare(heel_share);
-    return moved.primaryWith(radiograph, pitch_mm, weight, sigma_eq_mm);
+    return moved.primaryWith(radiograph, pitch_mm, weight, sigma_mm);
   }
-  ScatterModel moved = scatter.withEquivalentSigma(sigma_eq_mm);
-  moved.weight = weight;
+  ScatterModel moved = scatter;
+  moved.weight = weight, moved.sigma_mm = sigma_mm;
   return moved.remove(radiograph, pitch_mm, white_region, open_beam.withHeelShare(heel_share));
 }
 
@@ -312,26 +312,21 @@ void rampInfluences(const WedgeCalibrationJob& job, const Machine& geometry,
   };
   const ScatterModel& scatter = out.scatter;
   if (scatter.enabled()) {
-    // The width moves as the measurement's budget moves it: the kernel's
-    // Gaussian-equivalent sigma by that sigma's u, through its wide part.
-    auto without = [&](double weight, double sigma_eq_mm,
-                       double heel = OpenBeamField::kHeelShare) {
+    auto without = [&](double weight, double sigma_mm, double heel = OpenBeamField::kHeelShare) {
       Image removed = out.primaryWith(normalized, machine.pitch_u_mm, spec.white_region, weight,
-                                      sigma_eq_mm, heel);
+                                      sigma_mm, heel);
       return out.turned ? transposed(removed) : removed;
     };
-    const double sigma_eq = scatter.equivalentSigmaMm(),
-                 u_eq = scatter.equivalentSigmaUncertaintyMm();
     propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
-              without(scatter.weight + scatter.weight_uncertainty, sigma_eq), job.max_thickness_mm,
-              job.ramp_length_mm);
-    propagate(kScatterWidthInfluence, sigma_eq, u_eq,
-              without(scatter.weight, sigma_eq + u_eq), job.max_thickness_mm,
-              job.ramp_length_mm);
+              without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),
+              job.max_thickness_mm, job.ramp_length_mm);
+    propagate(kScatterWidthInfluence, scatter.sigma_mm, scatter.sigma_uncertainty_mm,
+              without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
+              job.max_thickness_mm, job.ramp_length_mm);
     if (out.open_beam.sloped())
       propagate(kOpenBeamHeelInfluence, OpenBeamField::kHeelShare,
                 OpenBeamField::kHeelShareUncertainty,
-                without(scatter.weight, sigma_eq,
+                without(scatter.weight, scatter.sigma_mm,
                         OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty),
                 job.max_thickness_mm, job.ramp_length_mm, "1");
   }

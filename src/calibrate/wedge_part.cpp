@@ -141,28 +141,26 @@ void knownWedgeInfluences(const WedgeCalibrationJob& job, const PartCalibrationJ
   };
   const ScatterModel& scatter = out.scatter;
   if (scatter.enabled()) {
-    // The width moves as the measurement's budget moves it: the kernel's
-    // Gaussian-equivalent sigma by that sigma's u, through its wide part.
-    auto without = [&](double weight, double sigma_eq_mm,
-                       double heel = OpenBeamField::kHeelShare) {
+    auto without = [&](double weight, double sigma_mm, double heel = OpenBeamField::kHeelShare) {
       return out.primaryWith(normalized, machine.pitch_u_mm, job.radiograph.white_region, weight,
-                             sigma_eq_mm, heel);
+                             sigma_mm, heel);
     };
-    const double sigma_eq = scatter.equivalentSigmaMm(),
-                 u_eq = scatter.equivalentSigmaUncertaintyMm();
     propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
-              knownWedgeInputs(job, without(scatter.weight + scatter.weight_uncertainty, sigma_eq),
-                               job.caliper),
+              knownWedgeInputs(
+                  job, without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),
+                  job.caliper),
               theta);
-    propagate(kScatterWidthInfluence, sigma_eq, u_eq,
-              knownWedgeInputs(job, without(scatter.weight, sigma_eq + u_eq), job.caliper),
+    propagate(kScatterWidthInfluence, scatter.sigma_mm, scatter.sigma_uncertainty_mm,
+              knownWedgeInputs(
+                  job, without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
+                  job.caliper),
               theta);
     if (out.open_beam.sloped())
       propagate(kOpenBeamHeelInfluence, OpenBeamField::kHeelShare,
                 OpenBeamField::kHeelShareUncertainty,
                 knownWedgeInputs(
                     job,
-                    without(scatter.weight, sigma_eq,
+                    without(scatter.weight, scatter.sigma_mm,
                             OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty),
                     job.caliper),
                 theta, "1");

@@ -72,9 +72,6 @@ ScatterModel ScatterModel::fromConfig(const ConfigNode& node) {
         uncertainty(node, "sigma2_uncertainty_mm", 0.1 * out.sigma2_mm, 1e4);
     out.fraction2_uncertainty = uncertainty(node, "fraction2_uncertainty", 0.05, 1.0);
   }
-  if (out.shape != HaloShape::kGaussian)
-    out.equivalent_sigma_uncertainty_mm =
-        uncertainty(node, "equivalent_sigma_uncertainty_mm", 0.0, 1e4);
   return out;
 }
 
@@ -97,8 +94,6 @@ nlohmann::json ScatterModel::toJson() const {
     out["sigma2_uncertainty_mm"] = sigma2_uncertainty_mm;
     out["fraction2_uncertainty"] = fraction2_uncertainty;
   }
-  if (shape != HaloShape::kGaussian && equivalent_sigma_uncertainty_mm > 0.0)
-    out["equivalent_sigma_uncertainty_mm"] = equivalent_sigma_uncertainty_mm;
   return out;
 }
 
@@ -135,29 +130,6 @@ double ScatterModel::equivalentSigmaMm() const {
   return sigma_mm;
 }
 
-double ScatterModel::equivalentSigmaUncertaintyMm() const {
-  if (shape == HaloShape::kGaussian) return sigma_uncertainty_mm;
-  if (equivalent_sigma_uncertainty_mm > 0.0) return equivalent_sigma_uncertainty_mm;
-  const double at = equivalentSigmaMm();
-  double squares = 0.0;
-  auto moved = [&](auto move) {
-    ScatterModel m = *this;
-    move(m);
-    squares += std::pow(m.equivalentSigmaMm() - at, 2);
-  };
-  moved([&](ScatterModel& m) { m.sigma_mm += sigma_uncertainty_mm; });
-  if (shape == HaloShape::kTwoGauss) {
-    moved([&](ScatterModel& m) { m.sigma2_mm += sigma2_uncertainty_mm; });
-    moved([&](ScatterModel& m) { m.fraction2 = std::min(1.0, m.fraction2 + fraction2_uncertainty); });
-  } else {
-    moved([&](ScatterModel& m) { m.tail_length_mm += tail_length_uncertainty_mm; });
-    moved([&](ScatterModel& m) {
-      m.tail_fraction = std::min(1.0, m.tail_fraction + tail_fraction_uncertainty);
-    });
-  }
-  return std::sqrt(squares);
-}
-
 bool ScatterModel::sameKernel(const ScatterModel& other) const {
   auto same = [](double a, double b) {
     return std::abs(a - b) <= 1e-9 * std::max({std::abs(a), std::abs(b), 1e-12});
@@ -166,26 +138,6 @@ bool ScatterModel::sameKernel(const ScatterModel& other) const {
          same(sigma_mm, other.sigma_mm) && same(sigma2_mm, other.sigma2_mm) &&
          same(fraction2, other.fraction2) && same(tail_fraction, other.tail_fraction) &&
          same(tail_length_mm, other.tail_length_mm);
-}
-
-ScatterModel ScatterModel::withEquivalentSigma(double target_mm) const {
-  ScatterModel out = *this;
-  if (shape == HaloShape::kGaussian) {
-    out.sigma_mm = target_mm;
-    return out;
-  }
-  // sigma_eq^2 = (1 - f) s^2 + f c w^2: c = 1 for a second Gaussian of
-  // sigma w, 3 for an exponential tail of length w (E[r^2] = 6 w^2).
-  const bool two = shape == HaloShape::kTwoGauss;
-  const double f = two ? fraction2 : tail_fraction, c = two ? 1.0 : 3.0;
-  const double wide2 = (target_mm * target_mm - (1.0 - f) * sigma_mm * sigma_mm) / (f * c);
-  if (f > 1e-6 && wide2 > 0.0) {
-    (two ? out.sigma2_mm : out.tail_length_mm) = std::sqrt(wide2);
-    return out;
-  }
-  const double factor = target_mm / equivalentSigmaMm();
-  out.sigma_mm *= factor, out.sigma2_mm *= factor, out.tail_length_mm *= factor;
-  return out;
 }
 
 namespace {

@@ -292,56 +292,6 @@ TEST(HaloConfig, ShapesBordersAndTheirErrors) {
   EXPECT_THROW(read(R"({"weight": 0.1, "shape": "two_gauss", "sigma1_mm": 30,
                         "sigma2_mm": 50, "fraction2": 1.5})"),
                Error);
-  EXPECT_THROW(read(R"({"weight": 0.1, "sigma_mm": 30, "equivalent_sigma_uncertainty_mm": 2})"),
-               Error);  // a Gaussian's is its sigma's
-}
-
-// The equivalent width's uncertainty, which a measurement's budget moves
-// the whole kernel by: a Gaussian's sigma's; a two-width kernel's stated
-// one; without it each width's and the fraction's moved alone, in
-// quadrature (closed forms of sqrt((1 - f) s1^2 + f s2^2)).
-TEST(HaloConfig, TheEquivalentWidthsUncertaintyAndTheMovedKernel) {
-  const ScatterModel gaussian = ScatterModel::fromConfig(
-      ConfigNode::parse(R"({"weight": 0.1, "sigma_mm": 30, "sigma_uncertainty_mm": 1.5})", "j"));
-  EXPECT_EQ(gaussian.equivalentSigmaUncertaintyMm(), 1.5);
-  ScatterModel two;
-  two.weight = 0.1, two.shape = HaloShape::kTwoGauss, two.sigma_mm = 20.0, two.sigma2_mm = 70.0;
-  two.fraction2 = 0.35, two.sigma_uncertainty_mm = 1.0, two.sigma2_uncertainty_mm = 5.0;
-  two.fraction2_uncertainty = 0.02;
-  auto eq = [](double s1, double s2, double f) {
-    return std::sqrt((1.0 - f) * s1 * s1 + f * s2 * s2);
-  };
-  const double at = eq(20.0, 70.0, 0.35);
-  EXPECT_NEAR(two.equivalentSigmaUncertaintyMm(),
-              std::sqrt(std::pow(eq(21.0, 70.0, 0.35) - at, 2) +
-                        std::pow(eq(20.0, 75.0, 0.35) - at, 2) +
-                        std::pow(eq(20.0, 70.0, 0.37) - at, 2)),
-              1e-12);
-  two.equivalent_sigma_uncertainty_mm = 9.0;  // a characterisation's, second estimates included
-  EXPECT_EQ(two.equivalentSigmaUncertaintyMm(), 9.0);
-  const ScatterModel back = ScatterModel::fromConfig(ConfigNode::fromJson(two.toJson(), "x"));
-  EXPECT_EQ(back.equivalent_sigma_uncertainty_mm, 9.0);
-  // The equivalent sigma moved through the wide part: the core and the
-  // shares kept, the second sigma what the closed form needs.
-  const ScatterModel wider = two.withEquivalentSigma(at + 9.0);
-  EXPECT_NEAR(wider.equivalentSigmaMm(), at + 9.0, 1e-12);
-  EXPECT_EQ(wider.sigma_mm, 20.0);
-  EXPECT_EQ(wider.fraction2, 0.35);
-  EXPECT_EQ(wider.weight, 0.1);
-  EXPECT_NEAR(wider.sigma2_mm, std::sqrt((std::pow(at + 9.0, 2) - 0.65 * 400.0) / 0.35), 1e-12);
-  ScatterModel tail;
-  tail.weight = 0.12, tail.shape = HaloShape::kGaussExp, tail.sigma_mm = 30.0;
-  tail.tail_fraction = 0.25, tail.tail_length_mm = 80.0;
-  const ScatterModel shorter = tail.withEquivalentSigma(60.0);
-  EXPECT_NEAR(shorter.equivalentSigmaMm(), 60.0, 1e-12);
-  EXPECT_EQ(shorter.sigma_mm, 30.0);
-  EXPECT_NEAR(shorter.tail_length_mm, std::sqrt((3600.0 - 0.75 * 900.0) / 0.75), 1e-12);
-  // Below what the core alone gives, the wide part cannot reach it: every
-  // width scaled instead.
-  const ScatterModel narrow = tail.withEquivalentSigma(20.0);
-  EXPECT_NEAR(narrow.equivalentSigmaMm(), 20.0, 1e-12);
-  EXPECT_NEAR(narrow.sigma_mm / 30.0, narrow.tail_length_mm / 80.0, 1e-12);
-  EXPECT_EQ(gaussian.withEquivalentSigma(31.0).sigma_mm, 31.0);
 }
 
 }  // namespace

@@ -149,21 +149,13 @@ void scatterComponents(const InfluenceSource& source, InfluenceMoves& out) {
         in.job.scatter.weight += amount * u;
       },
       curves ? curves->weight_plus_u : std::nullopt);
-  // The width: the kernel's Gaussian-equivalent sigma moved by that
-  // sigma's u (a two-width kernel's u includes what the characterisation's
-  // second estimates and kernel choice found), through its wide part: the
-  // core, which the edge pins, keeps its place (ScatterModel::
-  // withEquivalentSigma).
-  const double sigma_eq = scatter.equivalentSigmaMm();
-  const double u_eq = scatter.equivalentSigmaUncertaintyMm();
   withInputs(
       source, out, Propagation::kLinearised, "scatter width",
-      fmt::format("{} = {:.4g} +- {:.2g} mm{}",
-                  scatter.shape == HaloShape::kGaussian ? "sigma" : "sigma_eq", sigma_eq, u_eq,
+      fmt::format("sigma = {:.4g} +- {:.2g} mm{}", scatter.sigma_mm, scatter.sigma_uncertainty_mm,
                   with_curve),
-      "mm", u_eq,
-      [sigma_eq, u_eq](MeasurementInputs& in, double amount) {
-        in.job.scatter = in.job.scatter.withEquivalentSigma(sigma_eq + amount * u_eq);
+      "mm", scatter.sigma_uncertainty_mm,
+      [u = scatter.sigma_uncertainty_mm](MeasurementInputs& in, double amount) {
+        in.job.scatter.sigma_mm += amount * u;
       },
       curves ? curves->sigma_plus_u : std::nullopt);
 }

@@ -71,8 +71,6 @@ struct Scene {
   // material file's "scatter" block, with `curve_moves` when not null.
   std::optional<ScatterModel> scatter;
   bool scatter_in_job = true;
-  // Whether the lab adds the scatter to the shots without flat frames too.
-  bool halo_in_images = false;
   nlohmann::json curve_moves = nullptr;
   std::string bounds =
       R"({"rotation_deg": [[-5, 5], [15, 35], [-5, 5]], "centre_mm": [[-30, 30], [-30, 30], [470, 530]]})";
@@ -186,7 +184,7 @@ class Uncertainty : public ::testing::Test {
         }
       if (name != "c") previous = image;
       // With flat frames the lab adds the job's halo (in a uniform field).
-      if ((s.flat_slope_per_mm != 0.0 || s.halo_in_images) && s.scatter)
+      if (s.flat_slope_per_mm != 0.0 && s.scatter)
         image = s.scatter->apply(std::move(image), s.machine.pitch_u_mm);
       if (s.flat_slope_per_mm != 0.0)
         for (int y = 0; y < image.height(); ++y)
@@ -788,31 +786,6 @@ TEST_F(Uncertainty, TheFlatsSlopeThatMayBeTheHeelIsInTheBudget) {
   const MeasurementResult plain = measureScene(uniform);
   for (const auto& d : plain.uncertainty.dimensions)
     for (const auto& c : d.components) EXPECT_NE(c.name, "open beam's heel");
-}
-
-// A two-width halo's width in the budget: the whole kernel scaled so that
-// its Gaussian-equivalent sigma moves by the stated u of that sigma (a
-// characterisation's, its second estimates and kernel choice included),
-// and the re-solve with the kernel so scaled moves each dimension as the
-// component's sensitivity says.
-TEST_F(Uncertainty, ATwoWidthHalosEquivalentWidthMovesItsWidePart) {
-  Scene scene;
-  scene.scatter = ScatterModel{};
-  scene.scatter->weight = 0.15, scene.scatter->shape = HaloShape::kTwoGauss;
-  scene.scatter->border = HaloBorder::kOpen;
-  scene.scatter->sigma_mm = 6.0, scene.scatter->sigma2_mm = 20.0, scene.scatter->fraction2 = 0.3;
-  scene.scatter->sigma_uncertainty_mm = 0.1, scene.scatter->sigma2_uncertainty_mm = 0.5;
-  scene.scatter->fraction2_uncertainty = 0.01;
-  scene.scatter->equivalent_sigma_uncertainty_mm = 0.5;
-  scene.halo_in_images = true;
-  const MeasurementResult nominal = measureScene(scene);
-  const double sigma_eq = scene.scatter->equivalentSigmaMm();
-  MeasurementInputs wider = *inputs_;
-  wider.job.scatter = wider.job.scatter.withEquivalentSigma(sigma_eq + 0.5);
-  for (const auto& d : nominal.dimensions)
-    EXPECT_EQ(component(nominal, d.name, "scatter width").standard_uncertainty, 0.5) << d.name;
-  // The halo's width matters to the sizes.
-  EXPECT_GT(expectTheResolveMovesAsTheComponentSays(nominal, wider, "scatter width", 0.5), 1e-3);
 }
 
 // A scatter the job takes from its material, whose file says how the curve

@@ -10,14 +10,7 @@ DetectorFile loadDetectorFile(const std::filesystem::path& path) {
   const ConfigNode root = ConfigNode::loadFile(path);
   DetectorFile out;
   out.file = path;
-  if (auto halo = root.find("halo")) {
-    out.halo = ScatterModel::fromConfig(halo->at("scatter"));
-    // The characterisation states the equivalent width's u beside the
-    // kernel, its second estimates and the kernel's choice included.
-    if (auto u = halo->find("gaussian_equivalent_sigma_uncertainty_mm");
-        u && out.halo->shape != HaloShape::kGaussian)
-      out.halo->equivalent_sigma_uncertainty_mm = u->number(0.0, 1e4);
-  }
+  if (auto halo = root.find("halo")) out.halo = ScatterModel::fromConfig(halo->at("scatter"));
   if (auto lag = root.find("lag_fraction")) {
     out.lag_fraction = lag->at("value").number(0.0, 0.5);
     out.lag_fraction_uncertainty = lag->at("uncertainty").number(0.0, 0.5);

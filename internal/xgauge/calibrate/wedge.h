@@ -170,13 +170,12 @@ struct WedgeCalibration {
   std::optional<PartCalibration> part;
 
   // `radiograph` (normalized, before the scatter's removal, as the
-  // calibration read it) without a scatter of this weight and
-  // Gaussian-equivalent sigma (ScatterModel::withEquivalentSigma) in the
-  // open beam's field carrying `heel_share` of the flat's slope: the halo's
-  // removal (with its darkening) when it was estimated, else the scatter's.
-  // How the curve's uncertainty propagates the scatter's.
+  // calibration read it) without a scatter of this weight and width in the
+  // open beam's field carrying `heel_share` of the flat's slope: the
+  // halo's removal (with its darkening) when it was estimated, else the
+  // scatter's. How the curve's uncertainty propagates the scatter's.
   Image primaryWith(const Image& radiograph, double pitch_mm, const PixelRect& white_region,
-                    double weight, double sigma_eq_mm,
+                    double weight, double sigma_mm,
                     double heel_share = OpenBeamField::kHeelShare) const;
 };
 

@@ -83,10 +83,6 @@ struct ScatterModel {
   // enter a measurement's uncertainty budget.
   double weight_uncertainty = 0.0;
   double sigma_uncertainty_mm = 0.0;
-  // A two-width kernel's Gaussian-equivalent width's standard uncertainty,
-  // where a characterisation stated one (its second estimates and the
-  // kernel's choice included); 0: none stated.
-  double equivalent_sigma_uncertainty_mm = 0.0;
 
   bool enabled() const { return weight > 0.0; }
   double sigmaPx(double pitch_mm) const { return sigma_mm / pitch_mm; }
@@ -100,17 +96,6 @@ struct ScatterModel {
   // sqrt(E[r^2] / 2): the sigma of the Gaussian with the kernel's second
   // moment (lab2's "gaussian_equivalent_sigma_mm").
   double equivalentSigmaMm() const;
-  // The standard uncertainty of equivalentSigmaMm(): a Gaussian's sigma's;
-  // a two-width kernel's stated one, or without it its widths' and
-  // fraction's uncertainties propagated (each moved alone, in quadrature).
-  double equivalentSigmaUncertaintyMm() const;
-  // The same kernel with its Gaussian-equivalent sigma at `target_mm`: a
-  // Gaussian's sigma; a two-width kernel's wide part (the second sigma, the
-  // tail's length), its core and shares kept: the core is what an edge
-  // shot pins, the wide part what it sees least (beyond the panel, a
-  // level). Where the wide part's share is nil or cannot reach the target,
-  // every width scaled by target / sigma_eq.
-  ScatterModel withEquivalentSigma(double target_mm) const;
   // Whether `other` is this kernel (shape, border, weight, widths and
   // shares to 1e-9 relative; the uncertainties are not compared).
   bool sameKernel(const ScatterModel& other) const;
@@ -123,8 +108,7 @@ struct ScatterModel {
   // default, "open"); optional uncertainties "weight_uncertainty",
   // "sigma_uncertainty_mm" (of sigma_mm or sigma1_mm),
   // "tail_fraction_uncertainty", "tail_length_uncertainty_mm",
-  // "sigma2_uncertainty_mm", "fraction2_uncertainty",
-  // "equivalent_sigma_uncertainty_mm" (two-width kernels)} (Error at the node
+  // "sigma2_uncertainty_mm", "fraction2_uncertainty"} (Error at the node
   // otherwise; another shape's key is an unknown key at Config::finish).
   static ScatterModel fromConfig(const ConfigNode& node);
   // The same keys, all written; a mirrored Gaussian writes exactly the four

@@ -836,7 +836,14 @@ TEST_F(Uncertainty, TheScatterAndTheCurveItCalibratedMoveTogether) {
     EXPECT_NEAR(component(same, d.name, "scatter weight").contribution,
                 component(correlated, d.name, "scatter weight").contribution, 1e-9)
         << d.name;
-  // Another halo than the one the curve was calibrated with: apart.
+  // The same kernel stated with another u than the calibration moved the
+  // curve by: apart, as is another halo.
+  ScatterModel restated = *apart.scatter;
+  restated.weight_uncertainty = 0.02;
+  characterised.detector_file =
+      nlohmann::json{{"halo", {{"scatter", restated.toJson()}}}}.dump();
+  measureScene(characterised);
+  EXPECT_FALSE(inputs_->scatter_curves.has_value());
   ScatterModel other = *apart.scatter;
   other.weight = 0.06;
   characterised.detector_file =

@@ -338,6 +338,79 @@ TEST_F(Calibrate, WedgeGivesBackTheMaterialItWasRenderedWith) {
   expectErrorMentioning([&] { calibrateFromWedge(job); }, "no ramp found");
 }
 
+// A characterised two-width halo with its kernel's end and other kernel
+// (image/scatter.h): the curve is calibrated again with each one's kernel
+// removed, its change scaled to the equivalent width's u, counted in the
+// curve's u and written for the budget beside the weight's and width's
+// curves.
+TEST_F(Calibrate, AHalosKernelEndMovesTheCurveScaledToItsU) {
+  const Machine machine = wedgeMachine();
+  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
+  const Pose pose = Pose::fromEulerDeg(Vec3(0, 0, 0), Vec3(0.0, -45.0, 740.0));
+  Image image = renderWedgeBlock(machine, pose, 3);
+  image = scatterBlur(std::move(image), 0.139, 50.0 / machine.pitch_u_mm);
+  const PixelRect white{8, 8, 40, 40};
+  const double open = meanOf(image, white);
+  for (float& p : image.pixels()) p = static_cast<float>(static_cast<double>(p) / open);
+  writeTiff(dir_ / "wedge.tif", image, TiffFormat::kFloat32);
+  // Two Gaussians, the second's share 0 (the Gaussian the shot has); the
+  // end adds a wide part: sigma_eq from 50 to sqrt(0.95 50^2 + 0.05 150^2)
+  // = 60.2 mm, standing for u = 5 mm: the scale is 5 / 10.2.
+  std::ofstream(dir_ / "job.json") << R"({
+    "machine": "machine.json",
+    "radiograph": {"image": "wedge.tif", "white_region": [8, 8, 40, 40]},
+    "wedge": {"max_thickness_mm": 20.0, "ramp_length_mm": 90.0},
+    "scatter": {"weight": 0.139, "shape": "two_gauss", "sigma1_mm": 50.0, "sigma2_mm": 150.0,
+                "fraction2": 0.0, "equivalent_end": {"weight": 0.139, "sigma1_mm": 50.0,
+                "sigma2_mm": 150.0, "fraction2": 0.05, "equivalent_sigma_uncertainty_mm": 5.0},
+                "kernel_choice": {"shape": "gauss_exp", "weight": 0.14, "sigma_mm": 50.0,
+                "tail_fraction": 0.05, "tail_length_mm": 60.0,
+                "equivalent_sigma_uncertainty_mm": 3.9907}}})";
+  const WedgeCalibrationJob job = WedgeCalibrationJob::load(dir_ / "job.json");
+  const WedgeCalibration result = calibrateFromWedge(job);
+  const CurveInfluence *kernel = nullptr, *choice = nullptr;
+  for (const CurveInfluence& i : result.influences) {
+    if (i.name == kScatterKernelInfluence) kernel = &i;
+    if (i.name == kScatterKernelChoiceInfluence) choice = &i;
+  }
+  ASSERT_NE(kernel, nullptr);
+  ASSERT_NE(choice, nullptr);
+  ASSERT_TRUE(choice->moved.has_value());
+  // The other kernel: sigma_eq sqrt(0.95 50^2 + 3 0.05 60^2) = 53.9907 mm,
+  // its u 3.9907: scaled by u over the distance, 1.
+  const double choice_scale = 3.9907 / (std::sqrt(0.95 * 2500.0 + 3.0 * 0.05 * 3600.0) - 50.0);
+  EXPECT_NEAR(choice_scale, 1.0, 1e-3);
+  EXPECT_NEAR(choice->change,
+              choice_scale * largestDifference(result.material, *choice->moved, result.x_max_mm),
+              1e-12);
+  EXPECT_GT(choice->change, 0.0);
+  ASSERT_TRUE(kernel->moved.has_value());
+  EXPECT_DOUBLE_EQ(kernel->uncertainty, 5.0);
+  EXPECT_NEAR(kernel->value, 50.0, 1e-9);
+  const double reach = std::sqrt(0.95 * 50.0 * 50.0 + 0.05 * 150.0 * 150.0) - 50.0;
+  EXPECT_NEAR(kernel->change,
+              5.0 / reach * largestDifference(result.material, *kernel->moved, result.x_max_mm),
+              1e-12);
+  EXPECT_GT(kernel->change, 0.0);
+  double variance = result.table_uncertainty * result.table_uncertainty;
+  for (const CurveInfluence& i : result.influences) variance += i.change * i.change;
+  EXPECT_DOUBLE_EQ(result.material.transmissionUncertainty(), std::sqrt(variance));
+  writeWedgeCalibration(job, result, {}, dir_ / "out");
+  const nlohmann::json material = nlohmann::json::parse(std::ifstream(dir_ / "out" / "material.json"));
+  const nlohmann::json& moves = material.at("scatter").at("curve_moves");
+  EXPECT_TRUE(moves.contains("equivalent_end")) << moves.dump();
+  EXPECT_TRUE(moves.contains("kernel_choice")) << moves.dump();
+  EXPECT_TRUE(material.at("scatter").contains("equivalent_end"));
+  // The curve's u besides the scatter's moves leaves the kernel's out.
+  double besides = result.table_uncertainty * result.table_uncertainty;
+  for (const CurveInfluence& i : result.influences)
+    if (i.name != kScatterWeightInfluence && i.name != kScatterWidthInfluence &&
+        i.name != kScatterKernelInfluence && i.name != kScatterKernelChoiceInfluence)
+      besides += i.change * i.change;
+  EXPECT_NEAR(moves.at("transmission_uncertainty_besides").get<double>(), std::sqrt(besides),
+              1e-12);
+}
+
 // A wedge turned by 90 degrees: its ramp runs along the rows, and the
 // calibration reads it from the transposed radiograph.
 TEST_F(Calibrate, ATurnedWedgeIsReadAlongItsRows) {

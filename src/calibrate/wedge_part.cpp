@@ -164,6 +164,16 @@ void knownWedgeInfluences(const WedgeCalibrationJob& job, const PartCalibrationJ
                             OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty),
                     job.caliper),
                 theta, "1");
+    for (const KernelAlternative& a : kernelAlternatives(out)) {
+      propagate(a.influence, scatter.equivalentSigmaMm(), a.u,
+                knownWedgeInputs(job,
+                                 a.kernel.remove(normalized, machine.pitch_u_mm,
+                                                 job.radiograph.white_region, out.open_beam),
+                                 job.caliper),
+                theta);
+      if (!out.influences.empty() && out.influences.back().name == a.influence)
+        out.influences.back().change *= std::abs(a.scale);
+    }
   }
   // A dimension's value is in theta (the model's first entries, fixed or
   // free): moved up, or down where up breaks its bounds or a constraint.

@@ -234,6 +234,17 @@ std::string characterizationReport(const Characterization& c) {
                           m.sigma2_uncertainty_mm, m.fraction2, m.fraction2_uncertainty);
     text += fmt::format("; Gaussian-equivalent sigma {:.2f} +- {:.2f} mm\n", h.equivalent_sigma_mm,
                         h.equivalent_sigma_uncertainty_mm);
+    if (m.equivalent_end) {
+      const ScatterModel end = m.as(*m.equivalent_end);
+      text += fmt::format(
+          "  the budget's kernel at the equivalent width's end (u {:.2f} mm without the kernel "
+          "choice): weight {:.4f}, sigma_eq {:.2f} mm\n",
+          m.equivalent_end->equivalent_sigma_uncertainty_mm, end.weight, end.equivalentSigmaMm());
+    }
+    if (m.kernel_choice)
+      text += fmt::format("  the budget's other kernel: {}, weight {:.4f}, sigma_eq {:.2f} mm\n",
+                          toString(m.kernel_choice->shape), m.kernel_choice->weight,
+                          m.as(*m.kernel_choice).equivalentSigmaMm());
     for (const EdgeHaloCandidate& k : h.candidates)
       text += fmt::format(
           "  {:9} {:6}  misfit {:.3f} (correlation {:.1f})  BIC {:+.1f}  weight {:.4f}  sigma_eq "

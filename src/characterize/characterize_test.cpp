@@ -101,6 +101,27 @@ TEST(EdgeHalo, ATailedHalosWidthIsCoveredWhicheverKernelFitsIt) {
               std::abs(fit.kernel_choice_equivalent_sigma_change_mm));
     EXPECT_NE(fit.kernel_choice_shape, toString(fit.scatter.shape));
   }
+  // The kernel at the equivalent width's end: the chosen shape refitted
+  // with its width one u wider (bisected to a few percent of u), u without
+  // the kernel choice's term, which the other kernel carries itself; both
+  // are what the measurement's budget moves the halo to.
+  ASSERT_TRUE(fit.scatter.equivalent_end.has_value()) << fit.choice;
+  const ScatterModel end = fit.scatter.as(*fit.scatter.equivalent_end);
+  EXPECT_EQ(end.shape, fit.scatter.shape);
+  const double choice = fit.kernel_choice_equivalent_sigma_change_mm;
+  const double u = std::sqrt(std::pow(fit.equivalent_sigma_uncertainty_mm, 2) - choice * choice);
+  EXPECT_NEAR(fit.scatter.equivalent_end->equivalent_sigma_uncertainty_mm, u, 1e-9 * u);
+  const double reach = end.equivalentSigmaMm() - fit.equivalent_sigma_mm;
+  EXPECT_GE(reach, 0.99 * u);
+  EXPECT_LE(reach, 1.1 * u);
+  EXPECT_NEAR(end.weight, fit.scatter.weight, 0.2 * fit.scatter.weight);
+  ASSERT_EQ(fit.scatter.kernel_choice.has_value(), !fit.kernel_choice_shape.empty());
+  if (fit.scatter.kernel_choice) {
+    const ScatterModel other = fit.scatter.as(*fit.scatter.kernel_choice);
+    EXPECT_EQ(toString(other.shape), fit.kernel_choice_shape);
+    EXPECT_NEAR(other.equivalentSigmaMm() - fit.equivalent_sigma_mm, choice, 1e-9);
+    EXPECT_EQ(fit.scatter.kernel_choice->equivalent_sigma_uncertainty_mm, std::abs(choice));
+  }
 }
 
 // The halves' term in closed form: half the halves' difference where the

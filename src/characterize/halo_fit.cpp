@@ -583,6 +583,16 @@ void addHeelShare(const EdgeBins& bins, const EdgeHaloOptions& options, const Sh
       std::hypot(out.equivalent_sigma_uncertainty_mm, out.heel_share_equivalent_sigma_change_mm);
 }
 
+// A kernel's parameters as an alternative standing for u.
+HaloKernelEnd kernelOf(const ScatterModel& m, double u) {
+  HaloKernelEnd k;
+  k.shape = m.shape, k.weight = m.weight, k.sigma_mm = m.sigma_mm;
+  k.tail_fraction = m.tail_fraction, k.tail_length_mm = m.tail_length_mm;
+  k.sigma2_mm = m.sigma2_mm, k.fraction2 = m.fraction2;
+  k.equivalent_sigma_uncertainty_mm = u;
+  return k;
+}
+
 // Kernels whose misfit ratio lies within this share of the chosen one's fit
 // the shot about as well: which of them the panel's halo is, the edge shot
 // does not say, and their Gaussian-equivalent widths differ by what lies
@@ -598,6 +608,7 @@ constexpr double kKernelChoiceMisfit = 0.10;
 // panels the true width lay beyond both kernels' widths (decision 0044).
 void addKernelChoice(size_t chosen, EdgeHaloFit& out) {
   const EdgeHaloCandidate& pick = out.candidates[chosen];
+  const ScatterModel* other = nullptr;
   for (size_t i = 0; i < out.candidates.size(); ++i) {
     const EdgeHaloCandidate& c = out.candidates[i];
     if (i == chosen || c.scatter.border != pick.scatter.border ||
@@ -607,12 +618,66 @@ void addKernelChoice(size_t chosen, EdgeHaloFit& out) {
     if (std::abs(change) > std::abs(out.kernel_choice_equivalent_sigma_change_mm))
       out.kernel_choice_equivalent_sigma_change_mm = change,
       out.kernel_choice_weight_change = c.scatter.weight - out.scatter.weight,
-      out.kernel_choice_shape = toString(c.scatter.shape);
+      out.kernel_choice_shape = toString(c.scatter.shape), other = &c.scatter;
   }
+  // The other two-width kernel itself, for the budget (a Gaussian has one
+  // width: its difference is the core width's, which the budget moves).
+  if (other && other->shape != HaloShape::kGaussian && pick.scatter.shape != HaloShape::kGaussian)
+    out.scatter.kernel_choice = kernelOf(*other, std::abs(out.kernel_choice_equivalent_sigma_change_mm));
   out.equivalent_sigma_uncertainty_mm =
       std::hypot(out.equivalent_sigma_uncertainty_mm, out.kernel_choice_equivalent_sigma_change_mm);
   out.scatter.weight_uncertainty =
       std::hypot(out.scatter.weight_uncertainty, out.kernel_choice_weight_change);
+}
+
+// The kernel at the Gaussian-equivalent width's end, sigma_eq + u, u with
+// the terms of this kernel's fit (its profile, the halves, the heel: what
+// the profile's own u cannot see), the other kernel's apart (the budget
+// moves the halo to that kernel itself: kernel_choice). The profile along the second width (the
+// tail's length, the wide Gaussian's sigma: most of the second moment),
+// the others refitted, is stepped outwards in log width until its
+// equivalent width reaches sigma_eq + u, then bisected. It fits the shot as
+// well as any kernel that wide can, so a measurement's budget moves the
+// halo to it, with its move scaled to u where the profile ends short of it
+// (at the width's bound). Why not one parameter moved alone: a wide part
+// moved by itself leaves the kernel off the shot it was fitted to (on
+// lab2's m06 it took the mean U 2.5 times, decision 0049).
+void addEquivalentEnd(const Profile& profile, const Shape& s, const State& best, double low,
+                      double high, EdgeHaloFit& out) {
+  const double choice = out.kernel_choice_equivalent_sigma_change_mm;
+  const double u = std::sqrt(std::max(
+      0.0, out.equivalent_sigma_uncertainty_mm * out.equivalent_sigma_uncertainty_mm -
+               choice * choice));
+  if (s.widths < 2 || !(u > 0.0)) return;
+  const double start = std::log(best.widths[1]);
+  auto at = [&](double log_width) {
+    return toScatter(s, profile.at(2, std::clamp(std::exp(log_width), low, high)));
+  };
+  auto reach = [&](const ScatterModel& m) { return m.equivalentSigmaMm() - out.equivalent_sigma_mm; };
+  // Which way the second width widens the kernel: the refitted shares can
+  // turn it (a tail longer, its share much smaller).
+  constexpr double kFirstStep = 0.05;
+  ScatterModel outside = at(start + kFirstStep);
+  const double side = reach(outside) >= 0.0 ? 1.0 : -1.0;
+  if (side < 0.0) outside = at(start - kFirstStep);
+  double inside_step = 0.0, outside_step = kFirstStep;
+  for (int i = 0; i < 8 && reach(outside) < u; ++i) {
+    const double next = 2.0 * outside_step;
+    const double w = std::exp(start + side * next);
+    if (w <= low || w >= high) break;
+    inside_step = outside_step, outside_step = next, outside = at(start + side * next);
+  }
+  if (reach(outside) >= u)
+    for (int i = 0; i < 8; ++i) {
+      const double mid = 0.5 * (inside_step + outside_step);
+      const ScatterModel m = at(start + side * mid);
+      if (reach(m) >= u)
+        outside_step = mid, outside = m;
+      else
+        inside_step = mid;
+    }
+  if (!(reach(outside) > 1e-3 * u)) return;
+  out.scatter.equivalent_end = kernelOf(outside, u);
 }
 
 }  // namespace
@@ -716,6 +781,7 @@ EdgeHaloFit fitEdgeHalo(const Image& corrected, double pitch_mm, const EdgeHaloO
   addSplitHalves(bins, options, s, states[chosen], low, high, out);
   addHeelShare(bins, options, s, states[chosen], low, high, out);
   addKernelChoice(chosen, out);
+  addEquivalentEnd(profile, s, states[chosen], low, high, out);
   return out;
 }
 

@@ -46,6 +46,37 @@ double uncertainty(const ConfigNode& node, const char* key, double fallback, dou
   return fallback;
 }
 
+// A two-width kernel's alternative of `shape`: its weight, widths and
+// share, and the u it stands for.
+HaloKernelEnd kernelFrom(const ConfigNode& node, HaloShape shape) {
+  if (shape == HaloShape::kGaussian) node.fail("an alternative kernel has two widths");
+  HaloKernelEnd k;
+  k.shape = shape;
+  k.weight = node.at("weight").number(0.0, 0.9);
+  k.sigma_mm = node.at(shape == HaloShape::kTwoGauss ? "sigma1_mm" : "sigma_mm").number(0.01, 1e4);
+  if (shape == HaloShape::kGaussExp) {
+    k.tail_fraction = node.at("tail_fraction").number(0.0, 1.0);
+    k.tail_length_mm = node.at("tail_length_mm").number(0.01, 1e4);
+  } else {
+    k.sigma2_mm = node.at("sigma2_mm").number(0.01, 1e4);
+    k.fraction2 = node.at("fraction2").number(0.0, 1.0);
+  }
+  k.equivalent_sigma_uncertainty_mm = node.at("equivalent_sigma_uncertainty_mm").number(0.0, 1e4);
+  return k;
+}
+
+nlohmann::json kernelJson(const HaloKernelEnd& k, bool with_shape) {
+  const bool two = k.shape == HaloShape::kTwoGauss;
+  nlohmann::json out = {{"weight", k.weight}, {two ? "sigma1_mm" : "sigma_mm", k.sigma_mm}};
+  if (with_shape) out["shape"] = toString(k.shape);
+  if (two)
+    out["sigma2_mm"] = k.sigma2_mm, out["fraction2"] = k.fraction2;
+  else
+    out["tail_fraction"] = k.tail_fraction, out["tail_length_mm"] = k.tail_length_mm;
+  out["equivalent_sigma_uncertainty_mm"] = k.equivalent_sigma_uncertainty_mm;
+  return out;
+}
+
 }  // namespace
 
 ScatterModel ScatterModel::fromConfig(const ConfigNode& node) {
@@ -72,6 +103,15 @@ ScatterModel ScatterModel::fromConfig(const ConfigNode& node) {
         uncertainty(node, "sigma2_uncertainty_mm", 0.1 * out.sigma2_mm, 1e4);
     out.fraction2_uncertainty = uncertainty(node, "fraction2_uncertainty", 0.05, 1.0);
   }
+  if (out.shape != HaloShape::kGaussian) {
+    if (auto end = node.find("equivalent_end")) out.equivalent_end = kernelFrom(*end, out.shape);
+    if (auto other = node.find("kernel_choice"))
+      out.kernel_choice = kernelFrom(*other, shapeFrom(other->at("shape")));
+  } else if (node.has("equivalent_end") || node.has("kernel_choice")) {
+    node.fail(
+        "a Gaussian kernel has no equivalent_end or kernel_choice (its width's u is "
+        "sigma_uncertainty_mm)");
+  }
   return out;
 }
 
@@ -94,6 +134,8 @@ nlohmann::json ScatterModel::toJson() const {
     out["sigma2_uncertainty_mm"] = sigma2_uncertainty_mm;
     out["fraction2_uncertainty"] = fraction2_uncertainty;
   }
+  if (equivalent_end) out["equivalent_end"] = kernelJson(*equivalent_end, false);
+  if (kernel_choice) out["kernel_choice"] = kernelJson(*kernel_choice, true);
   return out;
 }
 
@@ -138,6 +180,16 @@ bool ScatterModel::sameKernel(const ScatterModel& other) const {
          same(sigma_mm, other.sigma_mm) && same(sigma2_mm, other.sigma2_mm) &&
          same(fraction2, other.fraction2) && same(tail_fraction, other.tail_fraction) &&
          same(tail_length_mm, other.tail_length_mm);
+}
+
+ScatterModel ScatterModel::as(const HaloKernelEnd& k) const {
+  ScatterModel out = *this;
+  out.shape = k.shape;
+  out.weight = k.weight, out.sigma_mm = k.sigma_mm;
+  out.tail_fraction = k.tail_fraction, out.tail_length_mm = k.tail_length_mm;
+  out.sigma2_mm = k.sigma2_mm, out.fraction2 = k.fraction2;
+  out.equivalent_end.reset(), out.kernel_choice.reset();
+  return out;
 }
 
 namespace {

@@ -294,5 +294,53 @@ TEST(HaloConfig, ShapesBordersAndTheirErrors) {
                Error);
 }
 
+// A two-width kernel's end: read, written back and taken as a kernel of the
+// same shape and border with the end's parameters; a Gaussian has none, and
+// an end must name its u.
+TEST(HaloConfig, AKernelsEquivalentEndRoundTrips) {
+  auto read = [](const std::string& text) {
+    const ConfigNode node = ConfigNode::parse(text, "detector.json");
+    ScatterModel m = ScatterModel::fromConfig(node);
+    node.finish();
+    return m;
+  };
+  const std::string tail =
+      R"({"weight": 0.12, "shape": "gauss_exp", "border": "open", "sigma_mm": 30,
+          "tail_fraction": 0.25, "tail_length_mm": 80, "equivalent_end": {"weight": 0.119,
+          "sigma_mm": 31, "tail_fraction": 0.22, "tail_length_mm": 95,
+          "equivalent_sigma_uncertainty_mm": 9.5}})";
+  const ScatterModel m = read(tail);
+  ASSERT_TRUE(m.equivalent_end.has_value());
+  const ScatterModel end = m.as(*m.equivalent_end);
+  EXPECT_EQ(end.shape, HaloShape::kGaussExp);
+  EXPECT_EQ(end.border, HaloBorder::kOpen);
+  EXPECT_EQ(end.weight, 0.119);
+  EXPECT_FALSE(end.equivalent_end.has_value());
+  EXPECT_NEAR(end.equivalentSigmaMm(), std::sqrt(0.78 * 31 * 31 + 3 * 0.22 * 95 * 95), 1e-9);
+  const ScatterModel back = ScatterModel::fromConfig(ConfigNode::fromJson(m.toJson(), "x"));
+  EXPECT_TRUE(back.equivalent_end == m.equivalent_end);
+  // The other kernel names its shape, and keeps the halo's border.
+  const ScatterModel choice = read(
+      R"({"weight": 0.12, "shape": "gauss_exp", "border": "open", "sigma_mm": 30,
+          "tail_fraction": 0.25, "tail_length_mm": 80, "kernel_choice": {"shape": "two_gauss",
+          "weight": 0.121, "sigma1_mm": 29, "sigma2_mm": 90, "fraction2": 0.3,
+          "equivalent_sigma_uncertainty_mm": 12}})");
+  ASSERT_TRUE(choice.kernel_choice.has_value());
+  const ScatterModel other = choice.as(*choice.kernel_choice);
+  EXPECT_EQ(other.shape, HaloShape::kTwoGauss);
+  EXPECT_EQ(other.border, HaloBorder::kOpen);
+  EXPECT_NEAR(other.equivalentSigmaMm(), std::sqrt(0.7 * 29 * 29 + 0.3 * 90 * 90), 1e-9);
+  const ScatterModel again = ScatterModel::fromConfig(ConfigNode::fromJson(choice.toJson(), "x"));
+  EXPECT_TRUE(again.kernel_choice == choice.kernel_choice);
+  EXPECT_FALSE(again.equivalent_end.has_value());
+  EXPECT_THROW(read(R"({"weight": 0.1, "sigma_mm": 30, "equivalent_end": {"weight": 0.1,
+                        "sigma_mm": 31, "equivalent_sigma_uncertainty_mm": 1}})"),
+               Error);
+  EXPECT_THROW(read(R"({"weight": 0.1, "shape": "two_gauss", "sigma1_mm": 20, "sigma2_mm": 70,
+                        "fraction2": 0.3, "equivalent_end": {"weight": 0.1, "sigma1_mm": 20,
+                        "sigma2_mm": 80, "fraction2": 0.3}})"),
+               Error);
+}
+
 }  // namespace
 }  // namespace xgauge

@@ -12,6 +12,8 @@ nlohmann::json ScatterCurves::toJson() const {
   };
   if (weight_plus_u) out["weight_plus_u"] = curve(*weight_plus_u);
   if (sigma_plus_u) out["sigma_mm_plus_u"] = curve(*sigma_plus_u);
+  if (equivalent_end) out["equivalent_end"] = curve(*equivalent_end);
+  if (kernel_choice) out["kernel_choice"] = curve(*kernel_choice);
   return out;
 }
 
@@ -21,6 +23,8 @@ ScatterCurves ScatterCurves::fromConfig(const ConfigNode& node) {
       node.at("transmission_uncertainty_besides").number(0.0, 0.5);
   if (auto w = node.find("weight_plus_u")) out.weight_plus_u = ExponentialSum::fromConfig(*w);
   if (auto s = node.find("sigma_mm_plus_u")) out.sigma_plus_u = ExponentialSum::fromConfig(*s);
+  if (auto e = node.find("equivalent_end")) out.equivalent_end = ExponentialSum::fromConfig(*e);
+  if (auto k = node.find("kernel_choice")) out.kernel_choice = ExponentialSum::fromConfig(*k);
   return out;
 }
 

@@ -133,6 +133,51 @@ void materialRest(const InfluenceSource& source, InfluenceMoves& out) {
   out.push_back(std::move(moved));
 }
 
+// A two-width halo's alternatives (image/scatter.h): the kernel at its
+// equivalent width's end (the halo refitted to the edge shot with its
+// Gaussian-equivalent width one u wider: the tail beyond the panel the
+// shot cannot see) and the other kernel that fits the shot about as well,
+// each with the curve calibrated with it where the material has one. Each
+// shift is scaled by u over the alternative's distance in sigma_eq (the
+// linearised shift is linear in the move; 1 for the other kernel, whose
+// whole difference is its u). Beside the core width's component, not
+// instead of it: the core's u holds the near edge's blur, these the far
+// halo's.
+void scatterKernels(const InfluenceSource& source, InfluenceMoves& out) {
+  const ScatterModel& scatter = source.inputs.job.scatter;
+  if (!source.propagate) return;
+  const std::optional<ScatterCurves>& curves = source.inputs.scatter_curves;
+  auto add = [&](const char* name, const std::optional<HaloKernelEnd>& kernel,
+                 const std::optional<ExponentialSum>& curve, const char* what) {
+    if (!kernel) return;
+    const double u = kernel->equivalent_sigma_uncertainty_mm;
+    const ScatterModel moved = scatter.as(*kernel);
+    const double reach = moved.equivalentSigmaMm() - scatter.equivalentSigmaMm();
+    if (!(u > 0.0) || !(std::abs(reach) > 0.0)) return;
+    InfluenceMove move;
+    move.influence = {name,
+                      fmt::format("sigma_eq = {:.4g} +- {:.2g} mm, {}{}",
+                                  scatter.equivalentSigmaMm(), u, what,
+                                  curve ? ", with the curve it calibrated" : ""),
+                      "mm",
+                      u,
+                      {}};
+    move.how = Propagation::kLinearised;
+    // The move is the alternative's, whatever the amount (the budget moves by 1).
+    move.change = [moved](MeasurementInputs& in, double) { in.job.scatter = moved; };
+    move.curve = curve;
+    move.scale = u / reach;
+    out.push_back(std::move(move));
+  };
+  add("scatter kernel", scatter.equivalent_end,
+      curves ? curves->equivalent_end : std::nullopt, "the kernel refitted at its end");
+  if (scatter.kernel_choice)
+    add("scatter kernel choice", scatter.kernel_choice,
+        curves ? curves->kernel_choice : std::nullopt,
+        fmt::format("the {} kernel that fits about as well", toString(scatter.kernel_choice->shape))
+            .c_str());
+}
+
 // The scatter's weight and width. With the material's scatter curves, each
 // scatter component moves the measurement's scatter and the curve its
 // calibration would then have found, together.
@@ -158,6 +203,7 @@ void scatterComponents(const InfluenceSource& source, InfluenceMoves& out) {
         in.job.scatter.sigma_mm += amount * u;
       },
       curves ? curves->sigma_plus_u : std::nullopt);
+  scatterKernels(source, out);
 }
 
 // The machine's source-detector distance and pixel pitch.

@@ -95,6 +95,10 @@ struct InfluenceMove {
   std::function<void(MeasurementInputs&, double)> change;
   // The moved model's material curve; nullopt: the model's.
   std::optional<ExponentialSum> curve;
+  // The moved model moves the influence by u / scale, so its shift is
+  // multiplied by scale (a halo kernel's end that lies elsewhere than u
+  // from the kernel: linearised moves only).
+  double scale = 1.0;
   std::string left_out;
 };
 

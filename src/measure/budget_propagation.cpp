@@ -292,8 +292,10 @@ std::vector<Influence> propagateInfluences(const FitAtSolution& ctx,
     ForwardModel moved(changed ? *changed : inputs,
                        move.curve ? *move.curve : ctx.model.material());
     moved.setEdgeSamples(ctx.model.edgeSamples());
-    if (auto influence = propagateInfluence(ctx, unmoved, moved, move.influence, move.how, notes))
+    if (auto influence = propagateInfluence(ctx, unmoved, moved, move.influence, move.how, notes)) {
+      influence->delta_theta *= move.scale;
       influences.push_back(std::move(*influence));
+    }
     else
       failed.push_back(move.influence.name);
   }

@@ -206,12 +206,15 @@ MeasurementInputs loadJobInputs(const ConfigNode& root, const std::filesystem::p
       // apart, a halo's uncertainty entered U twice with the sign that
       // cancels dropped (docs/method.md, "The scatter from the calibration
       // shot").
-      // The curve moved by the calibration's u of the weight and width: the
-      // same as the job's, else the moves would not be the budget's.
+      // The curve moved by the calibration's u of the weight and width and
+      // to the kernel's alternatives: the same as the job's, else the moves
+      // would not be the budget's.
       MaterialScatter scatter = materialScatterFromConfig(*found);
       if (scatter.model.sameKernel(in.job.scatter) &&
           scatter.model.weight_uncertainty == in.job.scatter.weight_uncertainty &&
-          scatter.model.sigma_uncertainty_mm == in.job.scatter.sigma_uncertainty_mm)
+          scatter.model.sigma_uncertainty_mm == in.job.scatter.sigma_uncertainty_mm &&
+          scatter.model.equivalent_end == in.job.scatter.equivalent_end &&
+          scatter.model.kernel_choice == in.job.scatter.kernel_choice)
         in.scatter_curves = std::move(scatter.curves);
     }
     material.finish();

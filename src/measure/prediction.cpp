@@ -87,7 +87,7 @@ std::optional<ViewInformation> viewInformationAt(ForwardModel& model,
     }
     const Eigen::VectorXd dr =
         Eigen::Map<const Eigen::VectorXd>(r.data(), fit->residuals.size()) - fit->residuals;
-    columns.push_back(fit->jacobian.transpose() * w.cwiseProduct(dr));
+    columns.push_back(move.scale * (fit->jacobian.transpose() * w.cwiseProduct(dr)));
     out.influences.push_back(move.influence.name);
     out.iterated.push_back(move.how != bi::Propagation::kLinearised);
   }

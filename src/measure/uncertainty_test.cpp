@@ -852,6 +852,67 @@ TEST_F(Uncertainty, TheScatterAndTheCurveItCalibratedMoveTogether) {
   EXPECT_FALSE(inputs_->scatter_curves.has_value());
 }
 
+// A two-width halo with its kernel's end (image/scatter.h): a component of
+// its own, the end's shift scaled to the equivalent width's u. Two ends at
+// different distances standing for the same u give about the same
+// component (the shift is about linear in the move), which an unscaled move
+// would not (their distances differ by a factor of two); without an end,
+// none.
+TEST_F(Uncertainty, AHalosKernelEndIsAComponentScaledToItsU) {
+  Scene scene;
+  ScatterModel halo;
+  halo.shape = HaloShape::kTwoGauss, halo.border = HaloBorder::kOpen;
+  halo.weight = 0.12, halo.sigma_mm = 5.0, halo.sigma2_mm = 30.0, halo.fraction2 = 0.4;
+  halo.weight_uncertainty = 0.001, halo.sigma_uncertainty_mm = 0.1;
+  scene.scatter = halo;
+  const MeasurementResult without = measureScene(scene);
+  for (const auto& d : without.uncertainty.dimensions)
+    for (const auto& c : d.components) EXPECT_NE(c.name, "scatter kernel") << d.name;
+  auto withEnd = [&](double sigma2_mm) {
+    Scene s = scene;
+    HaloKernelEnd end;
+    end.shape = HaloShape::kTwoGauss, end.weight = halo.weight, end.sigma_mm = halo.sigma_mm, end.sigma2_mm = sigma2_mm;
+    end.fraction2 = halo.fraction2, end.equivalent_sigma_uncertainty_mm = 1.0;
+    s.scatter->equivalent_end = end;
+    return measureScene(s);
+  };
+  const MeasurementResult near = withEnd(33.0), far = withEnd(36.0);
+  // The ends lie 1.6 and 3.2 mm beyond sigma_eq (17.0 mm): the halo's
+  // change is not quite linear over that (a tenth between them), against a
+  // factor of two unscaled.
+  double largest = 0.0;
+  for (const auto& d : far.uncertainty.dimensions)
+    largest = std::max(largest, component(far, d.name, "scatter kernel").contribution);
+  int sizeable = 0;
+  for (const auto& d : near.uncertainty.dimensions) {
+    const UncertaintyComponent& a = component(near, d.name, "scatter kernel");
+    const UncertaintyComponent& b = component(far, d.name, "scatter kernel");
+    EXPECT_NEAR(a.contribution, b.contribution, 0.15 * largest) << d.name;
+    EXPECT_DOUBLE_EQ(a.standard_uncertainty, 1.0) << d.name;
+    if (b.contribution > 1e-3) ++sizeable;
+  }
+  EXPECT_GT(sizeable, 0);
+  // The other kernel (a tail of the same second moment's order): a
+  // component of its own, its whole difference standing for its u, so a u
+  // twice that difference doubles it.
+  auto withChoice = [&](double scale) {
+    Scene s = scene;
+    HaloKernelEnd other;
+    other.shape = HaloShape::kGaussExp, other.weight = halo.weight, other.sigma_mm = 5.0;
+    other.tail_fraction = 0.4, other.tail_length_mm = 12.0;
+    const double reach = halo.as(other).equivalentSigmaMm() - halo.equivalentSigmaMm();
+    other.equivalent_sigma_uncertainty_mm = scale * std::abs(reach);
+    s.scatter->kernel_choice = other;
+    return measureScene(s);
+  };
+  const MeasurementResult once = withChoice(1.0), twice = withChoice(2.0);
+  for (const auto& d : once.uncertainty.dimensions)
+    EXPECT_NEAR(component(twice, d.name, "scatter kernel choice").contribution,
+                2.0 * component(once, d.name, "scatter kernel choice").contribution,
+                1e-9 + 1e-6 * component(once, d.name, "scatter kernel choice").contribution)
+        << d.name;
+}
+
 // A material whose file lists how its curve moves with the inputs of its
 // calibration (a wedge's caliper dimensions): each move of at least a tenth
 // of the largest is a component of its own, propagated with its own curve,

@@ -307,6 +307,10 @@ nlohmann::json materialScatterJson(const WedgeCalibration& result) {
       curves.weight_plus_u = influence.moved;
     else if (influence.name == kScatterWidthInfluence && influence.moved)
       curves.sigma_plus_u = influence.moved;
+    else if (influence.name == kScatterKernelInfluence && influence.moved)
+      curves.equivalent_end = influence.moved;
+    else if (influence.name == kScatterKernelChoiceInfluence && influence.moved)
+      curves.kernel_choice = influence.moved;
     else
       besides += influence.change * influence.change;
   }

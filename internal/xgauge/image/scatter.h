@@ -23,6 +23,7 @@
 #include "xgauge/image/image.h"
 #include "xgauge/image/open_beam.h"
 
+#include <optional>
 #include <vector>
 
 namespace xgauge {
@@ -63,6 +64,25 @@ struct HaloField {
   bool uniform() const { return open.empty(); }
 };
 
+// Another kernel that fits a two-width halo's edge shot about as well
+// (xgauge characterize), of the same border, and the u of the
+// Gaussian-equivalent width it stands for; a measurement's budget moves
+// the halo to it (docs/method.md, "Detector characterisation"):
+// - the end (key "equivalent_end"): the same shape with its second width
+//   held where the equivalent width reaches sigma_eq + u, the other
+//   parameters refitted, u from the profile, the halves and the heel;
+// - the other kernel (key "kernel_choice"): the other two-width shape as
+//   it was fitted, u its equivalent width's difference.
+struct HaloKernelEnd {
+  HaloShape shape = HaloShape::kGaussian;
+  double weight = 0.0, sigma_mm = 0.0;
+  double tail_fraction = 0.0, tail_length_mm = 0.0;  // gauss_exp
+  double sigma2_mm = 0.0, fraction2 = 0.0;           // two_gauss
+  // The Gaussian-equivalent width's standard uncertainty u it stands for.
+  double equivalent_sigma_uncertainty_mm = 0.0;
+  bool operator==(const HaloKernelEnd&) const = default;
+};
+
 struct ScatterModel {
   double weight = 0.0;    // w in [0, 0.9]; 0 = no scatter
   // On the detector: the Gaussian's sigma ("gaussian"), the core's
@@ -83,6 +103,10 @@ struct ScatterModel {
   // enter a measurement's uncertainty budget.
   double weight_uncertainty = 0.0;
   double sigma_uncertainty_mm = 0.0;
+  // A two-width kernel's end and the other kernel, where the
+  // characterisation found them.
+  std::optional<HaloKernelEnd> equivalent_end = std::nullopt;
+  std::optional<HaloKernelEnd> kernel_choice = std::nullopt;
 
   bool enabled() const { return weight > 0.0; }
   double sigmaPx(double pitch_mm) const { return sigma_mm / pitch_mm; }
@@ -99,6 +123,9 @@ struct ScatterModel {
   // Whether `other` is this kernel (shape, border, weight, widths and
   // shares to 1e-9 relative; the uncertainties are not compared).
   bool sameKernel(const ScatterModel& other) const;
+  // The kernel `k` (equivalent_end or kernel_choice) with this one's border
+  // and uncertainties, without alternatives of its own.
+  ScatterModel as(const HaloKernelEnd& k) const;
 
   // Job key "scatter": {"weight": w in [0, 0.9], optional "shape"
   // ("gaussian" by default), the shape's keys: "sigma_mm" in [0.01, 1e4]
@@ -108,8 +135,11 @@ struct ScatterModel {
   // default, "open"); optional uncertainties "weight_uncertainty",
   // "sigma_uncertainty_mm" (of sigma_mm or sigma1_mm),
   // "tail_fraction_uncertainty", "tail_length_uncertainty_mm",
-  // "sigma2_uncertainty_mm", "fraction2_uncertainty"} (Error at the node
-  // otherwise; another shape's key is an unknown key at Config::finish).
+  // "sigma2_uncertainty_mm", "fraction2_uncertainty"; optional for a
+  // two-width kernel "equivalent_end": {"weight", the shape's width and
+  // share keys, "equivalent_sigma_uncertainty_mm"} and "kernel_choice": the
+  // same with the other kernel's "shape"} (Error at the node otherwise;
+  // another shape's key is an unknown key at Config::finish).
   static ScatterModel fromConfig(const ConfigNode& node);
   // The same keys, all written; a mirrored Gaussian writes exactly the four
   // keys it always did (a material.json's "scatter").

@@ -12,7 +12,9 @@
 // In material.json, under "scatter" (docs/formats.md):
 //   "curve_moves": {"transmission_uncertainty_besides": u,
 //                   "weight_plus_u": {"terms": [...]},
-//                   "sigma_mm_plus_u": {"terms": [...]}}
+//                   "sigma_mm_plus_u": {"terms": [...]},
+//                   "equivalent_end": {"terms": [...]},
+//                   "kernel_choice": {"terms": [...]}}
 #pragma once
 
 #include "xgauge/core/config.h"
@@ -26,7 +28,10 @@ struct ScatterCurves {
   // The curve calibrated with the scatter's weight (width) moved by its
   // standard uncertainty; absent when the calibration did not move it.
   std::optional<ExponentialSum> weight_plus_u, sigma_plus_u;
-  // The curve's standard uncertainty from everything but those two.
+  // The curve calibrated with the halo at its kernel's equivalent_end, or
+  // its kernel_choice (image/scatter.h), where the scatter has them.
+  std::optional<ExponentialSum> equivalent_end, kernel_choice;
+  // The curve's standard uncertainty from everything but those.
   double transmission_uncertainty_besides = 0.0;
 
   nlohmann::json toJson() const;

@@ -238,19 +238,26 @@ Image renderWedgeBlock(const Machine& machine, const Pose& pose, int samples,
   return image;
 }
 
-TEST_F(Calibrate, WedgeGivesBackTheMaterialItWasRenderedWith) {
-  const Machine machine = wedgeMachine();
-  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
-  const ExponentialSum& truth = kWedgeCurve;
+// The wedge block 740 mm from the source as a calibration shot: `machine`
+// written to machine.json, the block rendered, blurred by the thesis's
+// scatter (w 0.139, sigma 50 mm), normalized by the white region [8, 8, 40,
+// 40] as a measured image is and written to wedge.tif; returns its pose.
+Pose writeWedgeShot(const Machine& machine, const fs::path& dir) {
+  std::ofstream(dir / "machine.json") << machine.toJson().dump();
   const Pose pose = Pose::fromEulerDeg(Vec3(0, 0, 0), Vec3(0.0, -45.0, 740.0));
   Image image = renderWedgeBlock(machine, pose, 3);
-  // The detector's scatter, and the white-region normalization a measured image gets.
-  const double w = 0.139, sigma_mm = 50.0;
-  image = scatterBlur(std::move(image), w, sigma_mm / machine.pitch_u_mm);
-  const PixelRect white{8, 8, 40, 40};
-  const double open = meanOf(image, white);
+  image = scatterBlur(std::move(image), 0.139, 50.0 / machine.pitch_u_mm);
+  const double open = meanOf(image, PixelRect{8, 8, 40, 40});
   for (float& p : image.pixels()) p = static_cast<float>(static_cast<double>(p) / open);
-  writeTiff(dir_ / "wedge.tif", image, TiffFormat::kFloat32);
+  writeTiff(dir / "wedge.tif", image, TiffFormat::kFloat32);
+  return pose;
+}
+
+TEST_F(Calibrate, WedgeGivesBackTheMaterialItWasRenderedWith) {
+  const Machine machine = wedgeMachine();
+  const ExponentialSum& truth = kWedgeCurve;
+  // The detector's scatter, and the white-region normalization a measured image gets.
+  const Pose pose = writeWedgeShot(machine, dir_);
   std::ofstream(dir_ / "job.json") << R"({
     "machine": "machine.json",
     "radiograph": {"image": "wedge.tif", "white_region": [8, 8, 40, 40]},
@@ -345,14 +352,7 @@ TEST_F(Calibrate, WedgeGivesBackTheMaterialItWasRenderedWith) {
 // curves.
 TEST_F(Calibrate, AHalosKernelEndMovesTheCurveScaledToItsU) {
   const Machine machine = wedgeMachine();
-  std::ofstream(dir_ / "machine.json") << machine.toJson().dump();
-  const Pose pose = Pose::fromEulerDeg(Vec3(0, 0, 0), Vec3(0.0, -45.0, 740.0));
-  Image image = renderWedgeBlock(machine, pose, 3);
-  image = scatterBlur(std::move(image), 0.139, 50.0 / machine.pitch_u_mm);
-  const PixelRect white{8, 8, 40, 40};
-  const double open = meanOf(image, white);
-  for (float& p : image.pixels()) p = static_cast<float>(static_cast<double>(p) / open);
-  writeTiff(dir_ / "wedge.tif", image, TiffFormat::kFloat32);
+  writeWedgeShot(machine, dir_);
   // Two Gaussians, the second's share 0 (the Gaussian the shot has); the
   // end adds a wide part: sigma_eq from 50 to sqrt(0.95 50^2 + 0.05 150^2)
   // = 60.2 mm, standing for u = 5 mm: the scale is 5 / 10.2.
@@ -396,7 +396,8 @@ TEST_F(Calibrate, AHalosKernelEndMovesTheCurveScaledToItsU) {
   for (const CurveInfluence& i : result.influences) variance += i.change * i.change;
   EXPECT_DOUBLE_EQ(result.material.transmissionUncertainty(), std::sqrt(variance));
   writeWedgeCalibration(job, result, {}, dir_ / "out");
-  const nlohmann::json material = nlohmann::json::parse(std::ifstream(dir_ / "out" / "material.json"));
+  const nlohmann::json material =
+      nlohmann::json::parse(std::ifstream(dir_ / "out" / "material.json"));
   const nlohmann::json& moves = material.at("scatter").at("curve_moves");
   EXPECT_TRUE(moves.contains("equivalent_end")) << moves.dump();
   EXPECT_TRUE(moves.contains("kernel_choice")) << moves.dump();

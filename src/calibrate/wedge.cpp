@@ -348,8 +348,8 @@ void rampInfluences(const WedgeCalibrationJob& job, const Machine& geometry,
                         OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty),
                 job.max_thickness_mm, job.ramp_length_mm, "1");
     for (const KernelAlternative& a : kernelAlternatives(out)) {
-      Image removed = a.kernel.remove(normalized, machine.pitch_u_mm, spec.white_region,
-                                      out.open_beam);
+      Image removed =
+          a.kernel.remove(normalized, machine.pitch_u_mm, spec.white_region, out.open_beam);
       propagate(a.influence, scatter.equivalentSigmaMm(), a.u,
                 out.turned ? transposed(removed) : removed, job.max_thickness_mm,
                 job.ramp_length_mm);

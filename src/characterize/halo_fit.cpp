@@ -623,7 +623,8 @@ void addKernelChoice(size_t chosen, EdgeHaloFit& out) {
   // The other two-width kernel itself, for the budget (a Gaussian has one
   // width: its difference is the core width's, which the budget moves).
   if (other && other->shape != HaloShape::kGaussian && pick.scatter.shape != HaloShape::kGaussian)
-    out.scatter.kernel_choice = kernelOf(*other, std::abs(out.kernel_choice_equivalent_sigma_change_mm));
+    out.scatter.kernel_choice =
+        kernelOf(*other, std::abs(out.kernel_choice_equivalent_sigma_change_mm));
   out.equivalent_sigma_uncertainty_mm =
       std::hypot(out.equivalent_sigma_uncertainty_mm, out.kernel_choice_equivalent_sigma_change_mm);
   out.scatter.weight_uncertainty =
@@ -633,27 +634,29 @@ void addKernelChoice(size_t chosen, EdgeHaloFit& out) {
 // The kernel at the Gaussian-equivalent width's end, sigma_eq + u, u with
 // the terms of this kernel's fit (its profile, the halves, the heel: what
 // the profile's own u cannot see), the other kernel's apart (the budget
-// moves the halo to that kernel itself: kernel_choice). The profile along the second width (the
-// tail's length, the wide Gaussian's sigma: most of the second moment),
-// the others refitted, is stepped outwards in log width until its
-// equivalent width reaches sigma_eq + u, then bisected. It fits the shot as
-// well as any kernel that wide can, so a measurement's budget moves the
-// halo to it, with its move scaled to u where the profile ends short of it
-// (at the width's bound). Why not one parameter moved alone: a wide part
-// moved by itself leaves the kernel off the shot it was fitted to (on
-// lab2's m06 it took the mean U 2.5 times, decision 0049).
+// moves the halo to that kernel itself: kernel_choice). The profile along
+// the second width (the tail's length, the wide Gaussian's sigma: most of
+// the second moment), the others refitted, is stepped outwards in log
+// width until its equivalent width reaches sigma_eq + u, then bisected. It
+// fits the shot as well as any kernel that wide can, so a measurement's
+// budget moves the halo to it, with its move scaled to u where the profile
+// ends short of it (at the width's bound). Why not one parameter moved
+// alone: a wide part moved by itself leaves the kernel off the shot it was
+// fitted to (on lab2's m06 it took the mean U 2.5 times, decision 0049).
 void addEquivalentEnd(const Profile& profile, const Shape& s, const State& best, double low,
                       double high, EdgeHaloFit& out) {
   const double choice = out.kernel_choice_equivalent_sigma_change_mm;
   const double u = std::sqrt(std::max(
-      0.0, out.equivalent_sigma_uncertainty_mm * out.equivalent_sigma_uncertainty_mm -
-               choice * choice));
+      0.0,
+      out.equivalent_sigma_uncertainty_mm * out.equivalent_sigma_uncertainty_mm - choice * choice));
   if (s.widths < 2 || !(u > 0.0)) return;
   const double start = std::log(best.widths[1]);
   auto at = [&](double log_width) {
     return toScatter(s, profile.at(2, std::clamp(std::exp(log_width), low, high)));
   };
-  auto reach = [&](const ScatterModel& m) { return m.equivalentSigmaMm() - out.equivalent_sigma_mm; };
+  auto reach = [&](const ScatterModel& m) {
+    return m.equivalentSigmaMm() - out.equivalent_sigma_mm;
+  };
   // Which way the second width widens the kernel: the refitted shares can
   // turn it (a tail longer, its share much smaller).
   constexpr double kFirstStep = 0.05;

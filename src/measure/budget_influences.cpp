@@ -155,13 +155,13 @@ void scatterKernels(const InfluenceSource& source, InfluenceMoves& out) {
     const double reach = moved.equivalentSigmaMm() - scatter.equivalentSigmaMm();
     if (!(u > 0.0) || !(std::abs(reach) > 0.0)) return;
     InfluenceMove move;
-    move.influence = {name,
-                      fmt::format("sigma_eq = {:.4g} +- {:.2g} mm, {}{}",
-                                  scatter.equivalentSigmaMm(), u, what,
-                                  curve ? ", with the curve it calibrated" : ""),
-                      "mm",
-                      u,
-                      {}};
+    move.influence = {
+        name,
+        fmt::format("sigma_eq = {:.4g} +- {:.2g} mm, {}{}", scatter.equivalentSigmaMm(), u, what,
+                    curve ? ", with the curve it calibrated" : ""),
+        "mm",
+        u,
+        {}};
     move.how = Propagation::kLinearised;
     // The move is the alternative's, whatever the amount (the budget moves by 1).
     move.change = [moved](MeasurementInputs& in, double) { in.job.scatter = moved; };
@@ -169,8 +169,8 @@ void scatterKernels(const InfluenceSource& source, InfluenceMoves& out) {
     move.scale = u / reach;
     out.push_back(std::move(move));
   };
-  add("scatter kernel", scatter.equivalent_end,
-      curves ? curves->equivalent_end : std::nullopt, "the kernel refitted at its end");
+  add("scatter kernel", scatter.equivalent_end, curves ? curves->equivalent_end : std::nullopt,
+      "the kernel refitted at its end");
   if (scatter.kernel_choice)
     add("scatter kernel choice", scatter.kernel_choice,
         curves ? curves->kernel_choice : std::nullopt,

@@ -295,8 +295,7 @@ std::vector<Influence> propagateInfluences(const FitAtSolution& ctx,
     if (auto influence = propagateInfluence(ctx, unmoved, moved, move.influence, move.how, notes)) {
       influence->delta_theta *= move.scale;
       influences.push_back(std::move(*influence));
-    }
-    else
+    } else
       failed.push_back(move.influence.name);
   }
   return influences;

@@ -226,21 +226,9 @@ WedgeCalibrationJob WedgeCalibrationJob::load(const std::filesystem::path& path)
   return job;
 }
 
-std::vector<KernelAlternative> kernelAlternatives(const WedgeCalibration& calibration) {
-  const ScatterModel& scatter = calibration.scatter;
-  std::vector<KernelAlternative> out;
-  if (calibration.halo || !scatter.enabled()) return out;
-  for (const auto& [name, kernel] :
-       {std::pair{kScatterKernelInfluence, scatter.equivalent_end},
-        std::pair{kScatterKernelChoiceInfluence, scatter.kernel_choice}}) {
-    if (!kernel) continue;
-    KernelAlternative a{name, scatter.as(*kernel), kernel->equivalent_sigma_uncertainty_mm, 0.0};
-    const double reach = a.kernel.equivalentSigmaMm() - scatter.equivalentSigmaMm();
-    if (!(a.u > 0.0) || !(std::abs(reach) > 0.0)) continue;
-    a.scale = a.u / reach;
-    out.push_back(std::move(a));
-  }
-  return out;
+std::vector<HaloAlternative> kernelAlternatives(const WedgeCalibration& calibration) {
+  if (calibration.halo || !calibration.scatter.enabled()) return {};
+  return calibration.scatter.alternatives();
 }
 
 // Five times the default uncertainty of a material's transmission: a curve
@@ -347,13 +335,13 @@ void rampInfluences(const WedgeCalibrationJob& job, const Machine& geometry,
                 without(scatter.weight, scatter.sigma_mm,
                         OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty),
                 job.max_thickness_mm, job.ramp_length_mm, "1");
-    for (const KernelAlternative& a : kernelAlternatives(out)) {
+    for (const HaloAlternative& a : kernelAlternatives(out)) {
       Image removed =
           a.kernel.remove(normalized, machine.pitch_u_mm, spec.white_region, out.open_beam);
-      propagate(a.influence, scatter.equivalentSigmaMm(), a.u,
+      propagate(a.name, scatter.equivalentSigmaMm(), a.u,
                 out.turned ? transposed(removed) : removed, job.max_thickness_mm,
                 job.ramp_length_mm);
-      if (!out.influences.empty() && out.influences.back().name == a.influence)
+      if (!out.influences.empty() && out.influences.back().name == a.name)
         out.influences.back().change *= std::abs(a.scale);
     }
   }

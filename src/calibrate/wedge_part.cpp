@@ -164,14 +164,14 @@ void knownWedgeInfluences(const WedgeCalibrationJob& job, const PartCalibrationJ
                             OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty),
                     job.caliper),
                 theta, "1");
-    for (const KernelAlternative& a : kernelAlternatives(out)) {
-      propagate(a.influence, scatter.equivalentSigmaMm(), a.u,
+    for (const HaloAlternative& a : kernelAlternatives(out)) {
+      propagate(a.name, scatter.equivalentSigmaMm(), a.u,
                 knownWedgeInputs(job,
                                  a.kernel.remove(normalized, machine.pitch_u_mm,
                                                  job.radiograph.white_region, out.open_beam),
                                  job.caliper),
                 theta);
-      if (!out.influences.empty() && out.influences.back().name == a.influence)
+      if (!out.influences.empty() && out.influences.back().name == a.name)
         out.influences.back().change *= std::abs(a.scale);
     }
   }

@@ -192,6 +192,21 @@ ScatterModel ScatterModel::as(const HaloKernelEnd& k) const {
   return out;
 }
 
+std::vector<HaloAlternative> ScatterModel::alternatives() const {
+  std::vector<HaloAlternative> out;
+  for (const bool end : {true, false}) {
+    const std::optional<HaloKernelEnd>& kernel = end ? equivalent_end : kernel_choice;
+    if (!kernel) continue;
+    HaloAlternative a{end ? "scatter kernel" : "scatter kernel choice", end, as(*kernel),
+                  kernel->equivalent_sigma_uncertainty_mm, 0.0};
+    const double reach = a.kernel.equivalentSigmaMm() - equivalentSigmaMm();
+    if (!(a.u > 0.0) || !(std::abs(reach) > 0.0)) continue;
+    a.scale = a.u / reach;
+    out.push_back(std::move(a));
+  }
+  return out;
+}
+
 namespace {
 
 // total += f * blurred (total empty: f * blurred): one Gaussian component of

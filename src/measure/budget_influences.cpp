@@ -147,35 +147,27 @@ void scatterKernels(const InfluenceSource& source, InfluenceMoves& out) {
   const ScatterModel& scatter = source.inputs.job.scatter;
   if (!source.propagate) return;
   const std::optional<ScatterCurves>& curves = source.inputs.scatter_curves;
-  auto add = [&](const char* name, const std::optional<HaloKernelEnd>& kernel,
-                 const std::optional<ExponentialSum>& curve, const char* what) {
-    if (!kernel) return;
-    const double u = kernel->equivalent_sigma_uncertainty_mm;
-    const ScatterModel moved = scatter.as(*kernel);
-    const double reach = moved.equivalentSigmaMm() - scatter.equivalentSigmaMm();
-    if (!(u > 0.0) || !(std::abs(reach) > 0.0)) return;
+  for (const HaloAlternative& a : scatter.alternatives()) {
+    std::optional<ExponentialSum> curve;
+    if (curves) curve = a.end ? curves->equivalent_end : curves->kernel_choice;
     InfluenceMove move;
     move.influence = {
-        name,
-        fmt::format("sigma_eq = {:.4g} +- {:.2g} mm, {}{}", scatter.equivalentSigmaMm(), u, what,
-                    curve ? ", with the curve it calibrated" : ""),
+        a.name,
+        fmt::format(
+            "sigma_eq = {:.4g} +- {:.2g} mm, {}{}", scatter.equivalentSigmaMm(), a.u,
+            a.end ? "the kernel refitted at its end"
+                  : fmt::format("the {} kernel that fits about as well", toString(a.kernel.shape)),
+            curve ? ", with the curve it calibrated" : ""),
         "mm",
-        u,
+        a.u,
         {}};
     move.how = Propagation::kLinearised;
     // The move is the alternative's, whatever the amount (the budget moves by 1).
-    move.change = [moved](MeasurementInputs& in, double) { in.job.scatter = moved; };
+    move.change = [kernel = a.kernel](MeasurementInputs& in, double) { in.job.scatter = kernel; };
     move.curve = curve;
-    move.scale = u / reach;
+    move.scale = a.scale;
     out.push_back(std::move(move));
-  };
-  add("scatter kernel", scatter.equivalent_end, curves ? curves->equivalent_end : std::nullopt,
-      "the kernel refitted at its end");
-  if (scatter.kernel_choice)
-    add("scatter kernel choice", scatter.kernel_choice,
-        curves ? curves->kernel_choice : std::nullopt,
-        fmt::format("the {} kernel that fits about as well", toString(scatter.kernel_choice->shape))
-            .c_str());
+  }
 }
 
 // The scatter's weight and width. With the material's scatter curves, each

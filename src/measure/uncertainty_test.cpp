@@ -838,18 +838,17 @@ TEST_F(Uncertainty, TheScatterAndTheCurveItCalibratedMoveTogether) {
         << d.name;
   // The same kernel stated with another u than the calibration moved the
   // curve by: apart, as is another halo.
+  auto expectApart = [&](const ScatterModel& halo) {
+    characterised.detector_file = nlohmann::json{{"halo", {{"scatter", halo.toJson()}}}}.dump();
+    measureScene(characterised);
+    EXPECT_FALSE(inputs_->scatter_curves.has_value());
+  };
   ScatterModel restated = *apart.scatter;
   restated.weight_uncertainty = 0.02;
-  characterised.detector_file =
-      nlohmann::json{{"halo", {{"scatter", restated.toJson()}}}}.dump();
-  measureScene(characterised);
-  EXPECT_FALSE(inputs_->scatter_curves.has_value());
+  expectApart(restated);
   ScatterModel other = *apart.scatter;
   other.weight = 0.06;
-  characterised.detector_file =
-      nlohmann::json{{"halo", {{"scatter", other.toJson()}}}}.dump();
-  measureScene(characterised);
-  EXPECT_FALSE(inputs_->scatter_curves.has_value());
+  expectApart(other);
 }
 
 // A two-width halo with its kernel's end (image/scatter.h): a component of

@@ -119,23 +119,11 @@ struct WedgeCalibrationJob {
 // width and a two-width kernel's end (image/scatter.h).
 inline constexpr const char* kScatterWeightInfluence = "scatter weight";
 inline constexpr const char* kScatterWidthInfluence = "scatter sigma_mm";
+// (ScatterModel::alternatives' names).
 inline constexpr const char* kScatterKernelInfluence = "scatter kernel";
 inline constexpr const char* kScatterKernelChoiceInfluence = "scatter kernel choice";
 // The share of the flat's slope that is the tube's heel (image/open_beam.h).
 inline constexpr const char* kOpenBeamHeelInfluence = "open beam's heel";
-
-// A characterised two-width halo's alternative kernel (image/scatter.h:
-// its end, its other kernel), the influence's name, the u of the
-// Gaussian-equivalent width it stands for, and u over the alternative's
-// distance, by which the curve's change with it is scaled: the
-// calibration's curve moves with the halo as the measurement's budget
-// moves it (measure/budget_influences.cpp). Its "moved" curve is the
-// curve with the alternative itself, unscaled, as the budget renders it.
-struct KernelAlternative {
-  const char* influence;
-  ScatterModel kernel;
-  double u = 0.0, scale = 1.0;
-};
 
 struct CurveInfluence {
   std::string name;
@@ -195,9 +183,12 @@ struct WedgeCalibration {
                     double heel_share = OpenBeamField::kHeelShare) const;
 };
 
-// The alternatives of the characterised halo the calibration removed; none
-// for a halo without them or estimated from the wedge's own shot.
-std::vector<KernelAlternative> kernelAlternatives(const WedgeCalibration& calibration);
+// The alternatives of the characterised halo the calibration removed
+// (ScatterModel::alternatives, named as the wedge's influences), with which
+// the curve is calibrated again, its change scaled by each one's scale as
+// the budget scales its move; none for a halo estimated from the wedge's
+// own shot.
+std::vector<HaloAlternative> kernelAlternatives(const WedgeCalibration& calibration);
 
 WedgeCalibration calibrateFromWedge(const WedgeCalibrationJob& job);
 // The same into `out`, which holds what the steps found so far when it

@@ -83,6 +83,8 @@ struct HaloKernelEnd {
   bool operator==(const HaloKernelEnd&) const = default;
 };
 
+struct HaloAlternative;
+
 struct ScatterModel {
   double weight = 0.0;    // w in [0, 0.9]; 0 = no scatter
   // On the detector: the Gaussian's sigma ("gaussian"), the core's
@@ -126,6 +128,8 @@ struct ScatterModel {
   // The kernel `k` (equivalent_end or kernel_choice) with this one's border
   // and uncertainties, without alternatives of its own.
   ScatterModel as(const HaloKernelEnd& k) const;
+  // Each alternative with a u and a distance in sigma_eq (HaloAlternative).
+  std::vector<HaloAlternative> alternatives() const;
 
   // Job key "scatter": {"weight": w in [0, 0.9], optional "shape"
   // ("gaussian" by default), the shape's keys: "sigma_mm" in [0.01, 1e4]
@@ -207,6 +211,17 @@ struct ScatterModel {
   // remove() above, bit for bit.
   Image remove(const Image& normalized, double pitch_mm, const PixelRect& white,
                const OpenBeamField& field, int iterations = 12) const;
+};
+
+// A two-width halo's alternative (ScatterModel::alternatives): "scatter
+// kernel" (equivalent_end) or "scatter kernel choice" (kernel_choice), the
+// kernel, its u and u over its distance in sigma_eq, by which a linearised
+// move to it is scaled to u (the budget's and the wedge calibration's).
+struct HaloAlternative {
+  const char* name;
+  bool end;  // equivalent_end, else kernel_choice
+  ScatterModel kernel;
+  double u = 0.0, scale = 1.0;
 };
 
 }  // namespace xgauge

@@ -188,12 +188,13 @@ MeasurementInputs loadInputs(const MeasurementOptions& options) {
 MeasurementSummary measureOrThrow(const MeasurementOptions& options) {
   const bool writes = !options.output_folder.empty();
   if (writes) checkOutputFolder(options.output_folder);
+  // measure.log from the first file read: what reading and normalising did.
+  std::optional<LogCopy> log;
+  if (writes) log.emplace();
   const MeasurementInputs inputs = loadInputs(options);
   std::optional<DatasetTruth> truth;
   if (!options.truth_file.empty()) truth = DatasetTruth::load(options.truth_file);
 
-  std::optional<LogCopy> log;
-  if (writes) log.emplace();
   ForwardModel model(inputs);
   std::function<void(const StageReport&)> on_stage;
   if (options.on_stage)

@@ -1,5 +1,6 @@
 #include "xgauge/image/bad_pixels.h"
 
+#include "xgauge/core/error.h"
 #include "xgauge/image/stats.h"
 
 #include <cmath>
@@ -69,9 +70,7 @@ int64_t repairBadPixels(Image& image, const ImageT<uint8_t>& mask) {
   return total;
 }
 
-Image flatFieldCorrectRepairing(const Image& raw, const Image& dark, const Image& flat,
-                                int64_t* repaired, const ImageT<uint8_t>* known) {
-  requireSameSize(raw, "raw image", dark, "dark frame");
+ImageT<uint8_t> badPixelsOf(const Image& dark, const Image& flat, const ImageT<uint8_t>* known) {
   ImageT<uint8_t> bad = findBadPixels(dark, flat);
   if (known) {
     if (known->width() != bad.width() || known->height() != bad.height())
@@ -79,15 +78,31 @@ Image flatFieldCorrectRepairing(const Image& raw, const Image& dark, const Image
            known->height(), bad.width(), bad.height());
     for (size_t i = 0; i < bad.size(); ++i) bad.pixels()[i] |= known->pixels()[i];
   }
-  Image corrected(raw.width(), raw.height());
-  for (size_t i = 0; i < raw.size(); ++i) {
+  return bad;
+}
+
+int64_t flatFieldCorrectInPlace(Image& frame, const Image& dark, const Image& flat,
+                                const ImageT<uint8_t>& bad) {
+  requireSameSize(frame, "raw image", dark, "dark frame");
+  XG_CHECK(bad.width() == frame.width() && bad.height() == frame.height() &&
+               flat.width() == frame.width() && flat.height() == frame.height(),
+           "a bad-pixel mask or flat frame of another size than the image");
+  for (size_t i = 0; i < frame.size(); ++i) {
     const double d = static_cast<double>(dark.pixels()[i]);
-    corrected.pixels()[i] =
+    frame.pixels()[i] =
         bad.pixels()[i] ? 0.0f
-                        : static_cast<float>((static_cast<double>(raw.pixels()[i]) - d) /
+                        : static_cast<float>((static_cast<double>(frame.pixels()[i]) - d) /
                                              (static_cast<double>(flat.pixels()[i]) - d));
   }
-  const int64_t count = repairBadPixels(corrected, bad);
+  return repairBadPixels(frame, bad);
+}
+
+Image flatFieldCorrectRepairing(const Image& raw, const Image& dark, const Image& flat,
+                                int64_t* repaired, const ImageT<uint8_t>* known) {
+  requireSameSize(raw, "raw image", dark, "dark frame");
+  const ImageT<uint8_t> bad = badPixelsOf(dark, flat, known);
+  Image corrected = raw;
+  const int64_t count = flatFieldCorrectInPlace(corrected, dark, flat, bad);
   if (repaired) *repaired = count;
   return corrected;
 }

@@ -22,16 +22,17 @@ Image downsample2x(const Image& image) {
   return half;
 }
 
-std::vector<Image> buildPyramid(const Image& full, int levels) {
+std::vector<Image> buildPyramid(Image full, int levels) {
   if (levels < 1) fail("an image pyramid needs at least 1 level, not {}", levels);
+  const int width = full.width(), height = full.height();
   std::vector<Image> pyramid;
   pyramid.reserve(static_cast<size_t>(levels));
-  pyramid.push_back(full);
+  pyramid.push_back(std::move(full));
   for (int level = 1; level < levels; ++level) {
     Image next = downsample2x(pyramid.back());
     if (next.empty())
-      fail("a {}x{} image is too small for {} pyramid levels: level {} would be empty",
-           full.width(), full.height(), levels, level);
+      fail("a {}x{} image is too small for {} pyramid levels: level {} would be empty", width,
+           height, levels, level);
     pyramid.push_back(std::move(next));
   }
   return pyramid;

@@ -24,13 +24,19 @@ void subtractPreviousLag(NormalizedRadiograph& out, const RadiographFrames& fram
          frames.previous->width(), frames.previous->height(), out.image.width(),
          out.image.height());
   Image previous = *frames.previous;
-  if (frames.dark && frames.column_crosstalk > 0.0 && previous.width() == frames.dark->width() &&
-      previous.height() == frames.dark->height())
-    previous = undoColumnCrosstalk(previous, *frames.dark, frames.column_crosstalk);
   if (frames.dark) {
     try {
-      previous = flatFieldCorrectRepairing(previous, *frames.dark, *frames.flat, nullptr,
-                                           frames.bad_pixels);
+      FlatField own;
+      const FlatField& field = frames.flat_field ? *frames.flat_field : (own = flatFieldOf(frames));
+      if (!field.undone_flat.empty()) {
+        if (previous.width() != frames.dark->width() || previous.height() != frames.dark->height())
+          fail("raw image is {}x{} but dark frame is {}x{}", previous.width(), previous.height(),
+               frames.dark->width(), frames.dark->height());
+        undoColumnCrosstalkInPlace(previous, *frames.dark, frames.column_crosstalk);
+      }
+      flatFieldCorrectInPlace(previous, *frames.dark,
+                              field.undone_flat.empty() ? *frames.flat : field.undone_flat,
+                              field.bad);
     } catch (const Error& e) {
       fail("{} with its dark and flat frames: {}", previous_name, e.message());
     }
@@ -68,19 +74,18 @@ NormalizedRadiograph normalizeRadiograph(Image raw, const RadiographFrames& fram
   out.image = std::move(raw);
   if (frames.dark) {
     try {
-      const bool crosstalk = frames.column_crosstalk > 0.0 &&
-                             out.image.width() == frames.dark->width() &&
-                             out.image.height() == frames.dark->height() &&
-                             frames.flat->width() == frames.dark->width() &&
-                             frames.flat->height() == frames.dark->height();
-      if (crosstalk)
-        out.image = flatFieldCorrectRepairing(
-            undoColumnCrosstalk(out.image, *frames.dark, frames.column_crosstalk), *frames.dark,
-            undoColumnCrosstalk(*frames.flat, *frames.dark, frames.column_crosstalk),
-            &out.repaired_pixels, frames.bad_pixels);
-      else
-        out.image = flatFieldCorrectRepairing(out.image, *frames.dark, *frames.flat,
-                                              &out.repaired_pixels, frames.bad_pixels);
+      FlatField own;
+      const FlatField& field = frames.flat_field ? *frames.flat_field : (own = flatFieldOf(frames));
+      if (!field.undone_flat.empty()) {
+        if (out.image.width() != frames.dark->width() ||
+            out.image.height() != frames.dark->height())
+          fail("raw image is {}x{} but dark frame is {}x{}", out.image.width(), out.image.height(),
+               frames.dark->width(), frames.dark->height());
+        undoColumnCrosstalkInPlace(out.image, *frames.dark, frames.column_crosstalk);
+      }
+      out.repaired_pixels = flatFieldCorrectInPlace(
+          out.image, *frames.dark, field.undone_flat.empty() ? *frames.flat : field.undone_flat,
+          field.bad);
     } catch (const Error& e) {
       fail("{} with its dark and flat frames: {}", name, e.message());
     }
@@ -111,7 +116,7 @@ NormalizedRadiograph normalizeRadiograph(Image raw, const RadiographFrames& fram
   return out;
 }
 
-Image undoColumnCrosstalk(const Image& frame, const Image& dark, double c) {
+void undoColumnCrosstalkInPlace(Image& frame, const Image& dark, double c) {
   XG_CHECK(frame.width() == dark.width() && frame.height() == dark.height(),
            "a frame and its dark frame differ in size");
   XG_CHECK(c >= 0.0 && c < 1.0, "column crosstalk out of range");
@@ -122,11 +127,29 @@ Image undoColumnCrosstalk(const Image& frame, const Image& dark, double c) {
       mean[static_cast<size_t>(u)] +=
           static_cast<double>(frame(u, v)) - static_cast<double>(dark(u, v));
   const double k = c / (1.0 + c) / height;
-  Image out = frame;
   for (int v = 0; v < height; ++v)
     for (int u = 0; u < width; ++u)
-      out(u, v) =
+      frame(u, v) =
           static_cast<float>(static_cast<double>(frame(u, v)) - k * mean[static_cast<size_t>(u)]);
+}
+
+Image undoColumnCrosstalk(const Image& frame, const Image& dark, double c) {
+  Image out = frame;
+  undoColumnCrosstalkInPlace(out, dark, c);
+  return out;
+}
+
+FlatField flatFieldOf(const RadiographFrames& frames) {
+  XG_CHECK(frames.dark && frames.flat, "a flat field needs dark and flat frames");
+  const Image& dark = *frames.dark;
+  const Image& flat = *frames.flat;
+  FlatField out;
+  // The crosstalk is undone where the sizes allow; else the bad-pixel
+  // search below names the sizes.
+  if (frames.column_crosstalk > 0.0 && flat.width() == dark.width() &&
+      flat.height() == dark.height())
+    out.undone_flat = undoColumnCrosstalk(flat, dark, frames.column_crosstalk);
+  out.bad = badPixelsOf(dark, out.undone_flat.empty() ? flat : out.undone_flat, frames.bad_pixels);
   return out;
 }
 

@@ -372,6 +372,7 @@ std::shared_ptr<const PreparedRadiograph> PreparedShots::get(const RadiographSpe
                           readInputRadiograph(spec.image, machine_, sha256_), frames, spec,
                           machine_, open_beam_ ? &*open_beam_ : nullptr)))
              .first;
+    logPrepared(spec, *it->second);
   }
   return it->second;
 }

@@ -29,4 +29,14 @@ Image flatFieldCorrectRepairing(const Image& raw, const Image& dark, const Image
                                 int64_t* repaired = nullptr,
                                 const ImageT<uint8_t>* known = nullptr);
 
+// The bad pixels flatFieldCorrectRepairing repairs: findBadPixels' and
+// `known`'s (Error on a size that is not the frames').
+ImageT<uint8_t> badPixelsOf(const Image& dark, const Image& flat, const ImageT<uint8_t>* known);
+
+// The same correction of `frame` itself, with the mask `bad` made once
+// (badPixelsOf) for every frame of a dark and flat pair; returns how many
+// pixels were repaired.
+int64_t flatFieldCorrectInPlace(Image& frame, const Image& dark, const Image& flat,
+                                const ImageT<uint8_t>& bad);
+
 }  // namespace xgauge

@@ -18,10 +18,11 @@ namespace xgauge {
 // or lower than 2 pixels gives an empty image.
 Image downsample2x(const Image& image);
 
-// `levels` images, level 0 = `full` (copied), level k = downsample2x of level
-// k - 1. Throws Error if `levels` < 1 or a level would be empty (the message
-// says which level and the full size).
-std::vector<Image> buildPyramid(const Image& full, int levels);
+// `levels` images, level 0 = `full` (moved in where the caller no longer
+// needs it), level k = downsample2x of level k - 1. Throws Error if `levels`
+// < 1 or a level would be empty (the message says which level and the full
+// size).
+std::vector<Image> buildPyramid(Image full, int levels);
 
 // The pixels of pyramid level `level` (>= 0) fully covered by `rect`, a
 // rectangle of level-0 pixels: columns ceil(x / 2^l) to floor(right / 2^l),

@@ -53,6 +53,11 @@ PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
                                      const RadiographSpec& spec, const Machine& machine,
                                      const OpenBeamField* open_beam = nullptr);
 
+// Logs what the preparation did that a reader of measure.log should know
+// (the lag subtracted), apart from prepareRadiograph so that radiographs
+// prepared together log in the job's order.
+void logPrepared(const RadiographSpec& spec, const PreparedRadiograph& prepared);
+
 // The open beam's field the frames' flat (less their dark) gives on this
 // machine's panel; a uniform one without frames.
 OpenBeamField openBeamOf(const RadiographFrames& frames, const Machine& machine);

@@ -7,6 +7,8 @@
 #include "xgauge/xray/derivatives.h"
 #include "xgauge/xray/renderer.h"
 
+#include <tbb/parallel_for.h>
+
 #include <algorithm>
 
 namespace xgauge {
@@ -118,10 +120,11 @@ void ForwardModel::addScatter(const WorldMesh& mesh, int radiograph, int level,
   // measured image.
   const ScatterModel& scatter = job().scatter;
   const ScatterEstimate spread = scatterOf(mesh, radiograph, level);
-  for (int y = 0; y < image.height(); ++y)
+  tbb::parallel_for(0, image.height(), [&](int y) {
     for (int x = 0; x < image.width(); ++x)
       image(x, y) = spread.simulated(scatter, static_cast<double>(image(x, y)), region.x + x + 0.5,
                                      region.y + y + 0.5);
+  });
 }
 
 ScatterEstimate ForwardModel::scatterWithRates(const WorldMesh& mesh, int radiograph, int level,

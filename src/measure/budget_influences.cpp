@@ -303,13 +303,15 @@ void turntable(const InfluenceSource& source, InfluenceMoves& out) {
 void moveLag(MeasurementInputs& in, size_t k, const PreparedRadiograph& radiograph, double step) {
   auto moved = std::make_shared<PreparedRadiograph>(radiograph);
   const auto scale = static_cast<float>(1.0 / (1.0 - step * radiograph.lag_signal_white));
-  for (size_t l = 0; l < moved->levels.size(); ++l) {
+  for (size_t l = 0; l < moved->levels.size() && l < radiograph.lag_signal_levels.size(); ++l) {
     const Image& signal = radiograph.lag_signal_levels[l];
     if (signal.empty()) continue;
-    auto pixels = moved->levels[l].pixels();
+    Image level = radiograph.levels[l];
+    auto pixels = level.pixels();
     auto lag = signal.pixels();
     for (size_t i = 0; i < pixels.size(); ++i)
       pixels[i] = (pixels[i] - static_cast<float>(step) * lag[i]) * scale;
+    moved->levels.replace(l, std::move(level));
   }
   in.radiographs[k] = std::move(moved);
 }
@@ -362,8 +364,11 @@ void normalisations(const InfluenceSource& source, InfluenceMoves& out) {
                [k, u, prepared = inputs.radiographs[k]](MeasurementInputs& in, double amount) {
                  auto moved = std::make_shared<PreparedRadiograph>(*prepared);
                  const auto scale = static_cast<float>(1.0 / (1.0 + amount * u));
-                 for (Image& image : moved->levels)
-                   for (float& p : image.pixels()) p *= scale;
+                 for (size_t l = 0; l < moved->levels.size(); ++l) {
+                   Image level = prepared->levels[l];
+                   for (float& p : level.pixels()) p *= scale;
+                   moved->levels.replace(l, std::move(level));
+                 }
                  in.radiographs[k] = std::move(moved);
                });
   }

@@ -93,13 +93,14 @@ PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
   int count = 1;
   while ((normalized.image.width() >> count) >= 64 && (normalized.image.height() >> count) >= 64)
     ++count;
-  out.levels = buildPyramid(std::move(normalized.image), count);
-  const Image& image = out.levels.front();
+  std::vector<Image> levels = buildPyramid(std::move(normalized.image), count);
+  const Image& image = levels.front();
   if (!normalized.lag_signal.empty()) {
     out.lag_signal_white = meanOf(normalized.lag_signal, spec.white_region);
-    out.lag_signal_levels = buildPyramid(std::move(normalized.lag_signal), count);
-    for (Image& level : out.lag_signal_levels)
+    std::vector<Image> lag_levels = buildPyramid(std::move(normalized.lag_signal), count);
+    for (Image& level : lag_levels)
       if (level.width() >= PreparedRadiograph::kLagSignalWidthPx) level = Image();
+    out.lag_signal_levels = SharedLevels(std::move(lag_levels));
   }
   PixelRect roi;
   if (spec.roi) {
@@ -108,10 +109,11 @@ PreparedRadiograph prepareRadiograph(Image raw, const RadiographFrames& frames,
            image.height());
     roi = *spec.roi;
   } else {
-    roi = automaticRoi(out.levels, spec);
+    roi = automaticRoi(levels, spec);
   }
   for (int level = 0; level < count; ++level)
-    out.rois.push_back(rectAtLevelOutward(roi, level, out.levels[static_cast<size_t>(level)]));
+    out.rois.push_back(rectAtLevelOutward(roi, level, levels[static_cast<size_t>(level)]));
+  out.levels = SharedLevels(std::move(levels));
   return out;
 }
 

@@ -24,17 +24,41 @@
 
 namespace xgauge {
 
+// The levels of a pyramid, each shared by the copies of a radiograph: a
+// budget's moved radiograph (its open beam's heel, its lag, its white
+// region) replaces the levels it changes and shares the others. A deep copy
+// per move held three 3072^2 pyramids at once in a triple's budget, its
+// process's peak.
+class SharedLevels {
+ public:
+  SharedLevels() = default;
+  explicit SharedLevels(std::vector<Image> levels) {
+    for (Image& level : levels) levels_.push_back(std::make_shared<const Image>(std::move(level)));
+  }
+  const Image& operator[](size_t level) const { return *levels_[level]; }
+  const Image& front() const { return *levels_.front(); }
+  size_t size() const { return levels_.size(); }
+  bool empty() const { return levels_.empty(); }
+  // Level `level` of this copy replaced; the other copies keep theirs.
+  void replace(size_t level, Image image) {
+    levels_[level] = std::make_shared<const Image>(std::move(image));
+  }
+
+ private:
+  std::vector<std::shared_ptr<const Image>> levels_;
+};
+
 // A radiograph prepared for fitting: normalized without the clamp (dark/flat
 // and the white region, image/radiograph.h), its pyramid and its roi.
 struct PreparedRadiograph {
-  std::vector<Image> levels;    // 0 = full size, halving down to about 64 px
+  SharedLevels levels;          // 0 = full size, halving down to about 64 px
   std::vector<PixelRect> rois;  // the region compared, per level
   int64_t repaired_pixels = 0;  // bad pixels repaired by the flat-field correction
   std::optional<LagEstimate> lag;  // the previous frame's lag subtracted, if any
   // With an estimated lag: per level, the lag signal subtracted per unit
   // fraction (normalized like `levels`), kept only on levels narrower than
   // kLagSignalWidthPx (the budget propagates the lag there); empty elsewhere.
-  std::vector<Image> lag_signal_levels;
+  SharedLevels lag_signal_levels;
   double lag_signal_white = 0.0;  // its mean over the white region (about 1)
   // The white region mean's relative standard uncertainty (NormalizedRadiograph).
   double white_mean_uncertainty = 0.0;

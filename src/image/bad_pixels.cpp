@@ -13,6 +13,19 @@ void requireSameSize(const Image& a, const char* a_name, const Image& b, const c
   if (a.width() != b.width() || a.height() != b.height())
     fail("{} is {}x{} but {} is {}x{}", a_name, a.width(), a.height(), b_name, b.width(), b.height());
 }
+
+// (raw - dark) / (flat - dark) into `out` (which may be `raw` itself), 0
+// where the pixel is bad.
+void correctInto(const Image& raw, const Image& dark, const Image& flat, const ImageT<uint8_t>& bad,
+                 Image& out) {
+  for (size_t i = 0; i < raw.size(); ++i) {
+    const double d = static_cast<double>(dark.pixels()[i]);
+    out.pixels()[i] =
+        bad.pixels()[i] ? 0.0f
+                        : static_cast<float>((static_cast<double>(raw.pixels()[i]) - d) /
+                                             (static_cast<double>(flat.pixels()[i]) - d));
+  }
+}
 }  // namespace
 
 ImageT<uint8_t> findBadPixels(const Image& dark, const Image& flat, double min_fraction) {
@@ -87,13 +100,7 @@ int64_t flatFieldCorrectInPlace(Image& frame, const Image& dark, const Image& fl
   XG_CHECK(bad.width() == frame.width() && bad.height() == frame.height() &&
                flat.width() == frame.width() && flat.height() == frame.height(),
            "a bad-pixel mask or flat frame of another size than the image");
-  for (size_t i = 0; i < frame.size(); ++i) {
-    const double d = static_cast<double>(dark.pixels()[i]);
-    frame.pixels()[i] =
-        bad.pixels()[i] ? 0.0f
-                        : static_cast<float>((static_cast<double>(frame.pixels()[i]) - d) /
-                                             (static_cast<double>(flat.pixels()[i]) - d));
-  }
+  correctInto(frame, dark, flat, bad, frame);
   return repairBadPixels(frame, bad);
 }
 
@@ -101,8 +108,9 @@ Image flatFieldCorrectRepairing(const Image& raw, const Image& dark, const Image
                                 int64_t* repaired, const ImageT<uint8_t>* known) {
   requireSameSize(raw, "raw image", dark, "dark frame");
   const ImageT<uint8_t> bad = badPixelsOf(dark, flat, known);
-  Image corrected = raw;
-  const int64_t count = flatFieldCorrectInPlace(corrected, dark, flat, bad);
+  Image corrected(raw.width(), raw.height());
+  correctInto(raw, dark, flat, bad, corrected);
+  const int64_t count = repairBadPixels(corrected, bad);
   if (repaired) *repaired = count;
   return corrected;
 }

@@ -11,21 +11,24 @@
 #include "xgauge/xray/machine.h"
 
 #include <spdlog/spdlog.h>
+#include <tbb/parallel_for.h>
 
 #include <chrono>
 #include <cmath>
+#include <exception>
+#include <functional>
 
 namespace xgauge {
 
 namespace {
 
-// Steps 3 to 6 on an image with the scatter taken out and its ramp found:
-// the geometry, the table and the curve, for the wedge's `thickness_mm` and
+// Steps 3 and 4 on an image with the scatter taken out and its ramp found:
+// the geometry and the table, for the wedge's `thickness_mm` and
 // `ramp_length_mm` (the job's, or shifted by their uncertainties to
 // propagate them). Fills `out` as far as it gets.
-void curveFromRamp(const WedgeCalibrationJob& job, const Machine& machine, const Image& image,
-                   const RampDetection& ramp, double thickness_mm, double ramp_length_mm,
-                   WedgeCalibration& out) {
+void rampTable(const WedgeCalibrationJob& job, const Machine& machine, const Image& image,
+               const RampDetection& ramp, double thickness_mm, double ramp_length_mm,
+               WedgeCalibration& out) {
   const std::string name = job.radiograph.image.string();
   out.rows.clear(), out.path_mm.clear(), out.transmission.clear();
   // 3. Geometry: both ends on the back face.
@@ -79,8 +82,12 @@ void curveFromRamp(const WedgeCalibrationJob& job, const Machine& machine, const
     out.path_mm.push_back(x_mean);
     out.transmission.push_back(i_mean);
   }
+}
 
-  // 5-6. Fit, then eq. 3.7.
+// Steps 5 and 6 on the table rampTable made: the fit, then eq. 3.7.
+void fitRampCurve(const WedgeCalibrationJob& job, const RampDetection& ramp,
+                  WedgeCalibration& out) {
+  const std::string name = job.radiograph.image.string();
   out.step = "fit the curve";
   const CurveOptions curve{.max_terms = job.max_terms,
                            .noise = ramp.row_noise,
@@ -103,6 +110,14 @@ void curveFromRamp(const WedgeCalibrationJob& job, const Machine& machine, const
           "by thesis eq. 3.7 (x0 = {:.4f} mm, x_max = {:.4f} mm)",
           job.radiograph.image.filename().string(), out.fit.best().report.terms_used,
           out.rows.size(), out.x0_mm, out.x_max_mm));
+}
+
+// Steps 3 to 6: rampTable, then fitRampCurve.
+void curveFromRamp(const WedgeCalibrationJob& job, const Machine& machine, const Image& image,
+                   const RampDetection& ramp, double thickness_mm, double ramp_length_mm,
+                   WedgeCalibration& out) {
+  rampTable(job, machine, image, ramp, thickness_mm, ramp_length_mm, out);
+  fitRampCurve(job, ramp, out);
 }
 
 // A wedge turned by 90 or 270 degrees has its ramp along the rows; the ramp
@@ -301,54 +316,106 @@ void rampInfluences(const WedgeCalibrationJob& job, const Machine& geometry,
   out.step = "the curve's uncertainty";
   const ExponentialSum material = out.material;
   const double range = out.x_max_mm;
-  auto propagate = [&](const std::string& influence, double value, double u,
-                       const Image& shifted_image, double thickness, double length,
-                       const char* unit = "mm") {
-    if (!(u > 0.0)) return;
-    WedgeCalibration moved;
-    try {
-      curveFromRamp(job, geometry, shifted_image, ramp, thickness, length, moved);
-    } catch (const Error& e) {
-      fail("the calibration does not survive its {} moved by its standard uncertainty ({}): {}",
-           influence, u, e.message());
-    }
-    out.influences.push_back({influence, value, u,
-                              largestDifference(material, moved.material, range), moved.material,
-                              unit});
+  // Each influence's move: the image the ramp is read from (made when the
+  // move is solved; `given` where it is the calibration's own), the wedge's
+  // dimensions, and the scale of its change (a halo's alternative kernel
+  // stands for its u over its distance).
+  struct Move {
+    std::string name;
+    double value = 0.0, u = 0.0;
+    std::function<Image()> make;
+    const Image* given = nullptr;
+    double thickness = 0.0, length = 0.0;
+    const char* unit = "mm";
+    double scale = 1.0;
   };
+  std::vector<Move> moves;
   const ScatterModel& scatter = out.scatter;
   if (scatter.enabled()) {
     auto without = [&](double weight, double sigma_mm, double heel = OpenBeamField::kHeelShare) {
-      Image removed = out.primaryWith(normalized, machine.pitch_u_mm, spec.white_region, weight,
-                                      sigma_mm, heel);
-      return out.turned ? transposed(removed) : removed;
+      return [&, weight, sigma_mm, heel] {
+        Image removed = out.primaryWith(normalized, machine.pitch_u_mm, spec.white_region, weight,
+                                        sigma_mm, heel);
+        return out.turned ? transposed(removed) : removed;
+      };
     };
-    propagate(kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
-              without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm),
-              job.max_thickness_mm, job.ramp_length_mm);
-    propagate(kScatterWidthInfluence, scatter.sigma_mm, scatter.sigma_uncertainty_mm,
-              without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm),
-              job.max_thickness_mm, job.ramp_length_mm);
-    if (out.open_beam.sloped())
-      propagate(kOpenBeamHeelInfluence, OpenBeamField::kHeelShare,
-                OpenBeamField::kHeelShareUncertainty,
-                without(scatter.weight, scatter.sigma_mm,
-                        OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty),
-                job.max_thickness_mm, job.ramp_length_mm, "1");
+    moves.push_back({kScatterWeightInfluence, scatter.weight, scatter.weight_uncertainty,
+                     without(scatter.weight + scatter.weight_uncertainty, scatter.sigma_mm)});
+    moves.push_back({kScatterWidthInfluence, scatter.sigma_mm, scatter.sigma_uncertainty_mm,
+                     without(scatter.weight, scatter.sigma_mm + scatter.sigma_uncertainty_mm)});
+    if (out.open_beam.sloped()) {
+      moves.push_back({kOpenBeamHeelInfluence, OpenBeamField::kHeelShare,
+                       OpenBeamField::kHeelShareUncertainty,
+                       without(scatter.weight, scatter.sigma_mm,
+                               OpenBeamField::kHeelShare + OpenBeamField::kHeelShareUncertainty)});
+      moves.back().unit = "1";
+    }
     for (const HaloAlternative& a : kernelAlternatives(out)) {
-      Image removed =
-          a.kernel.remove(normalized, machine.pitch_u_mm, spec.white_region, out.open_beam);
-      propagate(a.name, scatter.equivalentSigmaMm(), a.u,
-                out.turned ? transposed(removed) : removed, job.max_thickness_mm,
-                job.ramp_length_mm);
-      if (!out.influences.empty() && out.influences.back().name == a.name)
-        out.influences.back().change *= std::abs(a.scale);
+      moves.push_back({a.name, scatter.equivalentSigmaMm(), a.u, [&, kernel = a.kernel] {
+                         Image removed = kernel.remove(normalized, machine.pitch_u_mm,
+                                                       spec.white_region, out.open_beam);
+                         return out.turned ? transposed(removed) : removed;
+                       }});
+      moves.back().scale = std::abs(a.scale);
     }
   }
-  propagate("wedge max_thickness_mm", job.max_thickness_mm, job.max_thickness_uncertainty_mm, image,
-            job.max_thickness_mm + job.max_thickness_uncertainty_mm, job.ramp_length_mm);
-  propagate("wedge ramp_length_mm", job.ramp_length_mm, job.ramp_length_uncertainty_mm, image,
-            job.max_thickness_mm, job.ramp_length_mm + job.ramp_length_uncertainty_mm);
+  for (Move& move : moves) move.thickness = job.max_thickness_mm, move.length = job.ramp_length_mm;
+  moves.push_back({"wedge max_thickness_mm",
+                   job.max_thickness_mm,
+                   job.max_thickness_uncertainty_mm,
+                   {},
+                   &image,
+                   job.max_thickness_mm + job.max_thickness_uncertainty_mm,
+                   job.ramp_length_mm});
+  moves.push_back({"wedge ramp_length_mm",
+                   job.ramp_length_mm,
+                   job.ramp_length_uncertainty_mm,
+                   {},
+                   &image,
+                   job.max_thickness_mm,
+                   job.ramp_length_mm + job.ramp_length_uncertainty_mm});
+  std::erase_if(moves, [](const Move& move) { return !(move.u > 0.0); });
+  // Each move's table from its image, one after another (an image of the
+  // halo removed takes a 3072^2 shot's memory several times over), then
+  // the curves fitted side by side (the fits took most of a 3072^2 shot's
+  // calibration on one core); the first failure in this order the error.
+  std::vector<WedgeCalibration> moved(moves.size());
+  std::vector<std::exception_ptr> errors(moves.size());
+  for (size_t i = 0; i < moves.size(); ++i) {
+    const Move& move = moves[i];
+    try {
+      if (move.given) {
+        rampTable(job, geometry, *move.given, ramp, move.thickness, move.length, moved[i]);
+      } else {
+        const Image shifted = move.make();
+        rampTable(job, geometry, shifted, ramp, move.thickness, move.length, moved[i]);
+      }
+    } catch (...) {
+      errors[i] = std::current_exception();
+    }
+  }
+  tbb::parallel_for(size_t{0}, moves.size(), [&](size_t i) {
+    if (errors[i]) return;
+    try {
+      fitRampCurve(job, ramp, moved[i]);
+    } catch (...) {
+      errors[i] = std::current_exception();
+    }
+  });
+  for (size_t i = 0; i < moves.size(); ++i) {
+    const Move& move = moves[i];
+    if (errors[i]) {
+      try {
+        std::rethrow_exception(errors[i]);
+      } catch (const Error& e) {
+        fail("the calibration does not survive its {} moved by its standard uncertainty ({}): {}",
+             move.name, move.u, e.message());
+      }
+    }
+    out.influences.push_back({move.name, move.value, move.u,
+                              move.scale * largestDifference(material, moved[i].material, range),
+                              moved[i].material, move.unit});
+  }
 }
 
 }  // namespace

@@ -17,7 +17,7 @@ datasets/prism_a_small.json) on a panel of 3072^2 pixels of 0.4/3 mm in
 the same cabinet (the same field of view, the halo the same width in mm);
 the production part is another specimen (its own seed and dimensions).
 They are simulated, characterised, calibrated and verified once into
---data (about ten minutes on 2 cores) with --xgauge; both binaries then
+--data (about a minute on 2 cores) with --xgauge; both binaries then
 measure the same jobs.
 
 Per run it prints nothing; per case: the median wall, CPU (user + system)

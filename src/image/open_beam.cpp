@@ -3,6 +3,8 @@
 #include "xgauge/core/error.h"
 #include "xgauge/image/blur.h"
 
+#include <tbb/parallel_for.h>
+
 #include <Eigen/Dense>
 
 #include <algorithm>
@@ -33,9 +35,10 @@ double OpenBeamField::at(double u, double v) const {
 Image OpenBeamField::sampled(int width, int height, double scale) const {
   Image out(width, height, 1.0f);
   if (uniform()) return out;
-  for (int j = 0; j < height; ++j)
+  tbb::parallel_for(0, height, [&](int j) {
     for (int i = 0; i < width; ++i)
       out(i, j) = static_cast<float>(at((i + 0.5) * scale, (j + 0.5) * scale));
+  });
   return out;
 }
 
@@ -50,14 +53,16 @@ Image OpenBeamField::blurredOverThePlane(int width, int height, double scale,
   const int cell = std::max(1, static_cast<int>(sigma_mm / pixel_mm / 8.0));
   const int pad = static_cast<int>(std::ceil(5.0 * sigma_mm / (cell * pixel_mm))) + 1;
   const int nx = (width + cell - 1) / cell + 2 * pad, ny = (height + cell - 1) / cell + 2 * pad;
+  // Row by row on every core: each value is the field's or the grid's alone.
   Image grid(nx, ny);
-  for (int j = 0; j < ny; ++j)
+  tbb::parallel_for(0, ny, [&](int j) {
     for (int i = 0; i < nx; ++i)
       grid(i, j) =
           static_cast<float>(at((i - pad + 0.5) * cell * scale, (j - pad + 0.5) * cell * scale));
+  });
   grid = gaussianBlur(std::move(grid), sigma_mm / (cell * pixel_mm), BlurBorder::kZero);
   Image out(width, height);
-  for (int y = 0; y < height; ++y) {
+  tbb::parallel_for(0, height, [&](int y) {
     const double gy = std::clamp((y + 0.5) / cell + pad - 0.5, 0.0, ny - 1.0);
     const int y0 = std::min(static_cast<int>(gy), ny - 2);
     const double fy = gy - y0;
@@ -70,7 +75,7 @@ Image OpenBeamField::blurredOverThePlane(int width, int height, double scale,
           static_cast<float>((1 - fy) * ((1 - fx) * value(x0, y0) + fx * value(x0 + 1, y0)) +
                              fy * ((1 - fx) * value(x0, y0 + 1) + fx * value(x0 + 1, y0 + 1)));
     }
-  }
+  });
   return out;
 }
 
